@@ -1,0 +1,203 @@
+//! The bake pipeline as one call: validated options in, a report out.
+//! Stages so far: load → voxelize (DESIGN.md section 1, bake steps 1–2);
+//! later stages append to [`BakeReport`].
+
+use crate::compute::{DeviceSelection, Gpu};
+use crate::error::BakeError;
+use crate::scene::{self, SceneSummary};
+use crate::voxelize::{self, Backend, Patch, Resolution, VoxelStats};
+use anyhow::Context as _;
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Where the bake's OpenCL stages run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum ComputeChoice {
+    /// An OpenCL device (the default).
+    OpenCl(DeviceSelection),
+    /// The CPU reference implementation of every stage (slow, exact).
+    CpuReference,
+}
+
+/// The validated options of one bake.
+#[derive(Clone, Debug, Serialize)]
+pub struct BakeConfig {
+    pub scene: PathBuf,
+    pub resolution: Resolution,
+    pub compute: ComputeChoice,
+    /// Directory for inspection files (`patches.csv`), if asked for.
+    pub export: Option<PathBuf>,
+}
+
+impl BakeConfig {
+    /// Checks option values that do not depend on the scene.
+    pub fn validate(&self) -> Result<(), BakeError> {
+        match self.resolution {
+            Resolution::VoxelSize(s) if !(s.is_finite() && s > 0.0) => Err(BakeError::Options(
+                format!("--voxel-size must be a positive finite number, got {s}"),
+            )),
+            Resolution::Patches(0) => Err(BakeError::Options("--patches must be at least 1".into())),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// Time and outcome of one stage.
+#[derive(Clone, Debug, Serialize)]
+pub struct StageTime {
+    pub stage: &'static str,
+    pub seconds: f64,
+}
+
+/// What a bake did, for the terminal and for `--json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct BakeReport {
+    pub scene: SceneSummary,
+    pub device: String,
+    pub voxels: VoxelStats,
+    pub stages: Vec<StageTime>,
+}
+
+/// The result of a bake: patches plus the report.
+pub struct BakeOutput {
+    pub patches: Vec<Patch>,
+    pub report: BakeReport,
+}
+
+/// Runs the bake. `progress` receives one line per stage as it starts.
+pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Result<BakeOutput> {
+    config.validate()?;
+    let mut stages = Vec::new();
+
+    progress(&format!("loading {}", config.scene.display()));
+    let t = Instant::now();
+    let scene = scene::load(&config.scene)?;
+    stages.push(StageTime {
+        stage: "load",
+        seconds: t.elapsed().as_secs_f64(),
+    });
+
+    let gpu = match config.compute {
+        ComputeChoice::OpenCl(sel) => Some(Gpu::new(sel).context("opening the OpenCL device")?),
+        ComputeChoice::CpuReference => None,
+    };
+    let backend = match &gpu {
+        Some(g) => Backend::OpenCl(g),
+        None => Backend::Cpu,
+    };
+    let device = match &gpu {
+        Some(g) => format!("{} ({}, {})", g.info().name, g.info().kind, g.info().platform),
+        None => "CPU reference (f64)".to_string(),
+    };
+    progress(&format!("voxelizing on {device}"));
+    let t = Instant::now();
+    let vox = voxelize::voxelize(&scene, config.resolution, &backend)?;
+    stages.push(StageTime {
+        stage: "voxelize",
+        seconds: t.elapsed().as_secs_f64(),
+    });
+
+    if let Some(dir) = &config.export {
+        progress(&format!("exporting to {}", dir.display()));
+        let t = Instant::now();
+        export_patches(dir, &vox.patches)?;
+        stages.push(StageTime {
+            stage: "export",
+            seconds: t.elapsed().as_secs_f64(),
+        });
+    }
+
+    Ok(BakeOutput {
+        patches: vox.patches,
+        report: BakeReport {
+            scene: scene.summary(),
+            device,
+            voxels: vox.stats,
+            stages,
+        },
+    })
+}
+
+/// The header of `patches.csv` (one row per patch, in matrix order).
+pub const PATCHES_CSV_HEADER: &str =
+    "index,cx,cy,cz,nx,ny,nz,area,albedo_r,albedo_g,albedo_b,emission_r,emission_g,emission_b";
+
+/// Writes `dir/patches.csv`.
+pub fn export_patches(dir: &Path, patches: &[Patch]) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let path = dir.join("patches.csv");
+    let file = std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+    let mut w = std::io::BufWriter::new(file);
+    let io = |e| anyhow::Error::from(e).context(format!("writing {}", path.display()));
+    writeln!(w, "{PATCHES_CSV_HEADER}").map_err(io)?;
+    for (i, p) in patches.iter().enumerate() {
+        let [cx, cy, cz] = p.centre;
+        let [nx, ny, nz] = p.normal;
+        let [ar, ag, ab] = p.albedo;
+        let [er, eg, eb] = p.emission;
+        writeln!(
+            w,
+            "{i},{cx},{cy},{cz},{nx},{ny},{nz},{},{ar},{ag},{ab},{er},{eg},{eb}",
+            p.area
+        )
+        .map_err(io)?;
+    }
+    w.flush().map_err(io)?;
+    Ok(())
+}
+
+impl std::fmt::Display for BakeReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let v = &self.voxels;
+        writeln!(f, "device: {}", self.device)?;
+        writeln!(
+            f,
+            "voxels: size {:.6}, grid {}x{}x{}, {} occupied, {} triangle/voxel pieces ({} candidates, {} slivers of total area {:.3e})",
+            v.voxel_size,
+            v.grid_dims[0],
+            v.grid_dims[1],
+            v.grid_dims[2],
+            v.occupied_voxels,
+            v.pieces,
+            v.candidate_pieces,
+            v.sliver_pieces,
+            v.sliver_area
+        )?;
+        let per_dir: Vec<String> = crate::voxelize::Direction::ALL
+            .iter()
+            .map(|d| format!("{} {}", d.name(), v.patches_per_direction[*d as usize]))
+            .collect();
+        writeln!(f, "patches: {} ({})", v.patches, per_dir.join(", "))?;
+        writeln!(
+            f,
+            "area: patches {:.6e} of scene {:.6e} ({:.2} %); {} staircase groups merged; {} groups facing into solid dropped (area {:.3e}); {} albedo components clamped",
+            v.patch_area,
+            v.scene_area,
+            100.0 * v.patch_area / v.scene_area.max(f64::MIN_POSITIVE),
+            v.merged_groups,
+            v.covered_groups,
+            v.covered_area,
+            v.clamped_albedo
+        )?;
+        if v.search.len() > 1 {
+            let tries: Vec<String> = v
+                .search
+                .iter()
+                .map(|(s, n)| format!("{s:.4} -> {n}"))
+                .collect();
+            writeln!(f, "voxel size search: {}", tries.join(", "))?;
+        }
+        writeln!(
+            f,
+            "voxelize detail: pieces {:.3} s (kernels {:.3} s), reduce {:.3} s",
+            v.seconds_pieces, v.seconds_kernels, v.seconds_reduce
+        )?;
+        write!(f, "stages:")?;
+        for s in &self.stages {
+            write!(f, " {} {:.3} s;", s.stage, s.seconds)?;
+        }
+        writeln!(f)
+    }
+}

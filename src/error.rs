@@ -1,0 +1,73 @@
+//! Typed library errors. Every variant carries the context a user needs to
+//! act on it (the file, the line, the value, the stage); the binary wraps
+//! them with `anyhow` and prints the whole chain.
+
+use std::path::PathBuf;
+
+/// Errors raised by the scene loader and the scene description files.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("cannot read scene file {path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}:{line}: {message}")]
+    Parse {
+        path: PathBuf,
+        line: usize,
+        message: String,
+    },
+    #[error("{path}: {message}")]
+    Invalid { path: PathBuf, message: String },
+    #[error("{path}: the scene is empty ({detail})")]
+    Empty { path: PathBuf, detail: String },
+}
+
+/// Errors from the OpenCL layer.
+#[derive(Debug, thiserror::Error)]
+pub enum ClError {
+    #[error(
+        "no OpenCL platform found ({0}); install an OpenCL driver, e.g. `apt-get install \
+         pocl-opencl-icd ocl-icd-libopencl1` (scripts/setup does this)"
+    )]
+    NoPlatform(String),
+    #[error("OpenCL device index {index} does not exist: {available} device(s) available (see `radiosity devices`)")]
+    NoSuchDevice { index: usize, available: usize },
+    #[error("invalid OpenCL device selection {value:?} in {origin}: expected a device index such as 0")]
+    BadSelection { value: String, origin: String },
+    #[error("OpenCL program {name} failed to build on {device}:\n{log}")]
+    Build {
+        name: String,
+        device: String,
+        log: String,
+    },
+    #[error(
+        "buffer {name} needs {bytes} bytes, more than the device {device} allows \
+         ({limit_name} = {limit} bytes); use a coarser voxel size or fewer patches"
+    )]
+    TooLarge {
+        name: String,
+        bytes: u64,
+        device: String,
+        limit_name: &'static str,
+        limit: u64,
+    },
+    #[error("OpenCL call failed during {what}: {code}")]
+    Api { what: String, code: String },
+}
+
+/// Errors from the bake stages.
+#[derive(Debug, thiserror::Error)]
+pub enum BakeError {
+    #[error("invalid bake option: {0}")]
+    Options(String),
+    #[error("stage {stage}: {message}")]
+    Stage {
+        stage: &'static str,
+        message: String,
+    },
+    #[error(transparent)]
+    Cl(#[from] ClError),
+}

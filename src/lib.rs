@@ -1,0 +1,52 @@
+//! # radiosity: real-time radiosity from a compressed multi-bounce transfer matrix
+//!
+//! Global illumination for static diffuse scenes under dynamic lights, after
+//! the 2017 thesis this project follows (see `../shared/DESIGN.md`, which fixes
+//! the mathematics and the names used in every module).
+//!
+//! ## Pipeline
+//!
+//! Bake (offline, OpenCL on any device; every kernel has a CPU reference):
+//! 1. [`scene`]: load OBJ + MTL (albedo = `Kd` × linear texture average,
+//!    emission = `Ke`), validate, repair what can be repaired and count it.
+//! 2. [`voxelize`]: voxel patches — one per occupied voxel and open axis
+//!    direction, in the mean plane of its geometry, with that geometry's
+//!    projected area (`kernels/voxelize.cl`).
+//! 3. Form factors `F` with visibility (next stage).
+//! 4. The multi-bounce transfer `T_k = Σ_{h=1..k} F (diag(ρ) F)^{h−1}` or
+//!    `T_∞ = F (I − diag(ρ) F)^{−1}`, per colour channel (next stages).
+//! 5. Reordering, BC1 + log codec with an exact sparse top fraction,
+//!    mesh-to-patch map, versioned bake file (next stages).
+//!
+//! Run time (OpenGL 4.3+): shadow maps → direct irradiance `D` on patches →
+//! `H = T · B0` with `B0 = ρ ∘ D + E` → transfer to the mesh → shading.
+//!
+//! Supporting modules: [`compute`] (the OpenCL layer), [`bake`] (the stages
+//! as one call with a report), [`generate`] (bundled scenes), [`scene_config`]
+//! (camera and lights files), [`bench`] (benchmarks), [`error`].
+//!
+//! ## Invariants
+//! - Every OpenCL kernel (`kernels/*.cl`, embedded with `include_str!`) has a
+//!   Rust CPU reference, and a test compares the two with a tolerance derived
+//!   from f32 rounding.
+//! - OpenCL code lives in [`compute`] and the stage modules' `cl_*`
+//!   functions; the bake never depends on the renderer.
+//! - Nothing is silently clamped or dropped: repairs, clamps, slivers and
+//!   covered geometry are counted and reported.
+//! - The bake is deterministic: the same input and options give the same
+//!   result bit for bit (sorted reductions, no atomics on floats).
+//! - Albedo components are below 1 ([`scene::ALBEDO_MAX`]), so the
+//!   infinite-bounce series converges.
+//! - Memory is proportional to occupied voxels, never to the grid volume.
+
+pub mod bake;
+pub mod bench;
+pub mod bvh;
+pub mod compute;
+pub mod error;
+pub mod form_factor;
+pub mod generate;
+pub mod npy;
+pub mod scene;
+pub mod scene_config;
+pub mod voxelize;

@@ -1,0 +1,93 @@
+//! Helpers shared by the integration tests: small OBJ scenes written to a
+//! fresh temporary directory, and the OpenCL device the tests must have.
+
+#![allow(dead_code)]
+
+use radiosity::compute::{DeviceSelection, Gpu};
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// A fresh, empty directory under the system temp dir, unique per call.
+pub fn temp_dir(tag: &str) -> PathBuf {
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "radiosity-test-{}-{}-{}",
+        tag,
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("creating a temp dir");
+    dir
+}
+
+/// A planar quad (corners in counter-clockwise order seen from its front)
+/// with a material albedo.
+#[derive(Clone, Copy)]
+pub struct Quad {
+    pub corners: [[f64; 3]; 4],
+    pub albedo: [f64; 3],
+}
+
+/// Writes quads as an OBJ + MTL (one material per distinct albedo) and
+/// returns the OBJ's path. Coordinates are printed with `{:?}` so they
+/// round-trip exactly through f32 parsing when they are exact in f32.
+pub fn write_quads(tag: &str, quads: &[Quad]) -> PathBuf {
+    let dir = temp_dir(tag);
+    let mut obj = String::from("mtllib scene.mtl\n");
+    let mut mtl = String::new();
+    for (i, q) in quads.iter().enumerate() {
+        writeln!(mtl, "newmtl m{i}\nKd {} {} {}\n", q.albedo[0], q.albedo[1], q.albedo[2]).unwrap();
+        for c in &q.corners {
+            writeln!(obj, "v {:?} {:?} {:?}", c[0] as f32, c[1] as f32, c[2] as f32).unwrap();
+        }
+        let b = 4 * i + 1;
+        writeln!(obj, "usemtl m{i}\nf {} {} {} {}", b, b + 1, b + 2, b + 3).unwrap();
+    }
+    std::fs::write(dir.join("scene.mtl"), mtl).unwrap();
+    let path = dir.join("scene.obj");
+    std::fs::write(&path, obj).unwrap();
+    path
+}
+
+/// An axis-free quad: centre `c`, unit normal `n`, in-plane unit axes `u`,
+/// `v` (with u × v = n), half sizes `hu`, `hv`.
+pub fn quad(c: [f64; 3], u: [f64; 3], v: [f64; 3], hu: f64, hv: f64, albedo: [f64; 3]) -> Quad {
+    let p = |su: f64, sv: f64| -> [f64; 3] {
+        std::array::from_fn(|k| c[k] + su * hu * u[k] + sv * hv * v[k])
+    };
+    Quad {
+        corners: [p(-1.0, -1.0), p(1.0, -1.0), p(1.0, 1.0), p(-1.0, 1.0)],
+        albedo,
+    }
+}
+
+/// The OpenCL device every OpenCL test runs on. Fails (never skips) with
+/// a message saying how to get one.
+pub fn gpu() -> Gpu {
+    let sel = DeviceSelection::from_flag_or_env(None).expect("RADIOSITY_CL_DEVICE is malformed");
+    Gpu::new(sel).unwrap_or_else(|e| {
+        panic!(
+            "this test needs an OpenCL device and found none: {e}\n\
+             run scripts/setup (installs PoCL, the CPU OpenCL driver)"
+        )
+    })
+}
+
+/// `../shared/scenes/sponza/sponza.obj` relative to the crate; fails with a
+/// clear message when it is missing.
+pub fn sponza() -> PathBuf {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/sponza/sponza.obj");
+    assert!(
+        p.exists(),
+        "the Sponza scene is missing at {}: the tests need ../shared beside the checkout",
+        p.display()
+    );
+    p
+}
+
+/// A bundled scene's OBJ path.
+pub fn bundled(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("scenes/{name}/{name}.obj"))
+}

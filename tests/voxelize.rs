@@ -1,0 +1,328 @@
+//! Voxel simplification: OpenCL against the f64 CPU reference, and the
+//! geometric promises of DESIGN.md step 2 (patches keep their geometry's
+//! area and plane), on the bundled Cornell box, Sponza and small synthetic
+//! scenes whose answers are known exactly.
+
+mod common;
+
+use common::{gpu, quad, write_quads, Quad};
+use radiosity::scene;
+use radiosity::voxelize::{
+    self, cl_pieces, compare, compare_pieces, cpu_pieces, grid_coords, voxelize_at, Backend,
+    Direction, Grid, Resolution, Voxelization,
+};
+
+fn norm(v: [f64; 3]) -> [f64; 3] {
+    let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    v.map(|x| x / l)
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// f32 rounding of grid coordinates: a coordinate of magnitude up to
+/// `max_dim` voxels carries an error of `max_dim * f32::EPSILON / 2`, and a
+/// piece's area moves by at most its perimeter (≤ 6 voxel edges for a
+/// polygon inside a unit box, with margin) times that.
+fn area_tol(grid: &Grid) -> f64 {
+    let max_dim = grid.dims.iter().copied().max().unwrap() as f64;
+    6.0 * max_dim * f32::EPSILON as f64
+}
+
+/// Runs both paths on one scene and grid and checks that they agree: every
+/// piece found by both agrees to f32 rounding, pieces found by one path only
+/// are grazing contacts (area within rounding of zero), the boundary cases
+/// are rare, and every patch differing between the paths is explained by
+/// one of them.
+fn check_cl_against_cpu(path: &std::path::Path, size: f64, max_boundary_fraction: f64) -> (Voxelization, Voxelization) {
+    let scene = scene::load(path).unwrap();
+    let g = gpu();
+    let grid = Grid::new(scene.bounds(), size).unwrap();
+    let coords = grid_coords(&scene, &grid);
+    let (cl, _) = cl_pieces(&g, &coords, &grid).unwrap();
+    let cpu = cpu_pieces(&coords, &grid);
+    let pc = compare_pieces(&cl, &cpu);
+    let tol = area_tol(&grid);
+    println!("{}: size {size}, grid {:?}, pieces {pc:?}, area tol {tol:e}", path.display(), grid.dims);
+    assert!(pc.max_area_diff <= tol, "piece areas differ by {} > {tol}", pc.max_area_diff);
+    assert!(pc.max_unmatched_area <= tol, "a piece of area {} was found by one path only", pc.max_unmatched_area);
+    // A centroid is a ratio of moments over the area; for pieces above 1e-3
+    // faces its rounding error stays below tol / 1e-3 voxel edges.
+    assert!(pc.max_centroid_diff <= tol / 1e-3, "centroids differ by {}", pc.max_centroid_diff);
+    let boundary = pc.boundary_cases() as f64 / pc.common.max(1) as f64;
+    assert!(
+        boundary <= max_boundary_fraction,
+        "{} boundary cases of {} pieces",
+        pc.boundary_cases(),
+        pc.common
+    );
+
+    let vcl = voxelize::reduce(&scene, grid, &cl).unwrap();
+    let vcpu = voxelize::reduce(&scene, grid, &cpu).unwrap();
+    let c = compare(&vcl, &vcpu);
+    println!("patches: {c:?}");
+    // Each boundary case changes the occupancy of at most one voxel, which
+    // can change the patches of that voxel and of its six neighbours.
+    assert!(
+        c.only_in_a + c.only_in_b <= 7 * pc.boundary_cases() * 6,
+        "{} patches differ, more than the {} boundary cases explain",
+        c.only_in_a + c.only_in_b,
+        pc.boundary_cases()
+    );
+    // Albedos are weighted means of material albedos (< 1) whose weights
+    // carry the relative piece-area error; 1e-4 covers pieces as small as
+    // tol / 1e-4 of a face.
+    assert!(c.max_albedo_diff <= 1e-4, "albedo differs by {}", c.max_albedo_diff);
+    (vcl, vcpu)
+}
+
+#[test]
+fn cornell_box_opencl_matches_cpu_reference() {
+    // 20 mm voxels: a 30×30×30 grid, about 4,400 patches.
+    let (cl, cpu) = check_cl_against_cpu(&common::bundled("cornell_box"), 20.0, 0.0);
+    let c = compare(&cl, &cpu);
+    assert_eq!((c.only_in_a, c.only_in_b), (0, 0), "the Cornell box has no boundary cases");
+    assert!(cl.patches.len() > 1000, "{} patches", cl.patches.len());
+}
+
+#[test]
+fn sponza_opencl_matches_cpu_reference() {
+    // 0.25 m voxels: a 142×69×66 grid and about 117,000 patches. Boundary
+    // cases must stay below 0.1 % of the pieces.
+    let (cl, _) = check_cl_against_cpu(&common::sponza(), 0.25, 1e-3);
+    assert!(cl.patches.len() > 10_000);
+}
+
+#[test]
+fn opencl_voxelization_is_deterministic() {
+    let scene = scene::load(&common::bundled("cornell_box")).unwrap();
+    let g = gpu();
+    let a = voxelize_at(&scene, 25.0, &Backend::OpenCl(&g)).unwrap();
+    let b = voxelize_at(&scene, 25.0, &Backend::OpenCl(&g)).unwrap();
+    assert_eq!(a.patches, b.patches);
+}
+
+/// Patches whose voxel lies within the plate's footprint, by plate.
+fn plate_patches<'a>(v: &'a Voxelization, normal: [f64; 3]) -> Vec<&'a voxelize::Patch> {
+    v.patches.iter().filter(|p| dot(p.normal, normal) > 0.999).collect()
+}
+
+/// Two parallel plates at an angle to the grid, facing each other at
+/// distance 0.5: their patches keep each plate's area and lie in its plane,
+/// so the distance between the plates is kept (DESIGN.md step 2).
+fn check_tilted_plates(n: [f64; 3], backend: &Backend, tol: f64) {
+    let n = norm(n);
+    let helper = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 0.0, 1.0] };
+    let u = norm(cross(helper, n));
+    let v = cross(n, u);
+    let c0 = [0.03, 0.02, 0.01];
+    let d = 0.5;
+    let c1: [f64; 3] = std::array::from_fn(|k| c0[k] + d * n[k]);
+    let neg = n.map(|x| -x);
+    let path = write_quads(
+        "tilted",
+        &[
+            quad(c0, u, v, 0.5, 0.5, [0.5; 3]),
+            // Facing −n: swap the in-plane axes to flip the winding.
+            quad(c1, v, u, 0.5, 0.5, [0.5; 3]),
+        ],
+    );
+    let scene = scene::load(&path).unwrap();
+    // f32 vertex storage limits how exactly the quads are the ideal plates.
+    let area0 = scene.surface_area() / 2.0;
+    assert!((area0 - 1.0).abs() < 1e-6);
+    let vox = voxelize_at(&scene, 0.1, backend).unwrap();
+    for (normal, centre) in [(n, c0), (neg, c1)] {
+        let ps = plate_patches(&vox, normal);
+        let area: f64 = ps.iter().map(|p| p.area).sum();
+        assert!((area - 1.0).abs() <= tol, "plate area {area}, expected 1 (normal {normal:?})");
+        for p in &ps {
+            let off = dot(p.centre, normal) - dot(centre, normal);
+            assert!(off.abs() <= tol, "patch centre {off} off its plate's plane");
+        }
+    }
+    let ps0 = plate_patches(&vox, n);
+    let ps1 = plate_patches(&vox, neg);
+    let total = ps0.len() + ps1.len();
+    assert_eq!(total, vox.patches.len(), "every patch belongs to a plate");
+    // The distance between the plates' patch planes.
+    let h0: f64 = ps0.iter().map(|p| p.area * dot(p.centre, n)).sum::<f64>();
+    let h1: f64 = ps1.iter().map(|p| p.area * dot(p.centre, n)).sum::<f64>();
+    let dist = h1 / ps1.iter().map(|p| p.area).sum::<f64>() - h0 / ps0.iter().map(|p| p.area).sum::<f64>();
+    assert!((dist - d).abs() <= tol, "plate distance {dist}, expected {d}");
+    assert_eq!(vox.stats.covered_groups, 0);
+}
+
+#[test]
+fn tilted_plates_keep_area_and_distance_cpu() {
+    // f64 reference: exact up to f32 storage of the vertices (1e-6).
+    for n in [[0.3, 0.95, 0.0], [0.3, 0.8, 0.52], [-0.62, 0.55, 0.56]] {
+        check_tilted_plates(n, &Backend::Cpu, 1e-6);
+    }
+}
+
+#[test]
+fn tilted_plates_keep_area_and_distance_opencl() {
+    // f32 clipping: per-piece area error ≤ 6 · dims · eps_f32 faces (about
+    // 1e-5 here, times 0.01 m² per face), summed over ~150 pieces.
+    let g = gpu();
+    for n in [[0.3, 0.95, 0.0], [0.3, 0.8, 0.52], [-0.62, 0.55, 0.56]] {
+        check_tilted_plates(n, &Backend::OpenCl(&g), 2e-5);
+    }
+}
+
+#[test]
+fn plane_on_a_voxel_boundary_is_counted_once() {
+    // Voxel size 0.25 (a power of two, so the boundary y = 0.5 is exact in
+    // grid coordinates). A floor at y = 0.5 faces up into the voxel above; a
+    // ceiling at y = 1.5 faces down into the voxel below. (They are more
+    // than two voxels apart: surfaces facing each other from adjacent voxels
+    // hide each other under the neighbour rule, a documented limit.)
+    let up = quad([0.5, 0.5, 0.5], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], 0.4, 0.4, [0.5; 3]);
+    let down = quad([0.5, 1.5, 0.5], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], 0.4, 0.4, [0.5; 3]);
+    let path = write_quads("boundary", &[up, down]);
+    let scene = scene::load(&path).unwrap();
+    let g = gpu();
+    for backend in [Backend::Cpu, Backend::OpenCl(&g)] {
+        let v = voxelize_at(&scene, 0.25, &backend).unwrap();
+        let floor: Vec<_> = v.patches.iter().filter(|p| p.direction == Direction::PosY).collect();
+        let ceil: Vec<_> = v.patches.iter().filter(|p| p.direction == Direction::NegY).collect();
+        assert_eq!(floor.len() + ceil.len(), v.patches.len());
+        let a_floor: f64 = floor.iter().map(|p| p.area).sum();
+        let a_ceil: f64 = ceil.iter().map(|p| p.area).sum();
+        assert!((a_floor - 0.64).abs() < 1e-6, "floor area {a_floor} (0.64 expected once)");
+        assert!((a_ceil - 0.64).abs() < 1e-6, "ceiling area {a_ceil}");
+        for p in &floor {
+            let y0 = v.grid.origin[1] + v.grid.size * p.voxel[1] as f64;
+            assert_eq!(y0, 0.5, "the floor belongs to the voxel above it");
+            assert_eq!(p.centre[1], 0.5);
+        }
+        for p in &ceil {
+            let y1 = v.grid.origin[1] + v.grid.size * (p.voxel[1] + 1) as f64;
+            assert_eq!(y1, 1.5, "the ceiling belongs to the voxel below it");
+        }
+        assert_eq!(floor.len(), 16, "4×4 voxels under a 0.8 m square at 0.25 m");
+    }
+}
+
+#[test]
+fn one_voxel_thin_wall_has_patches_on_both_sides() {
+    // A wall 0.05 thick inside one voxel layer (x in [0.55, 0.6] ⊂ [0.5, 0.75]).
+    let plus = quad([0.6, 0.5, 0.5], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], 0.4, 0.4, [0.2, 0.4, 0.6]);
+    let minus = quad([0.55, 0.5, 0.5], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0], 0.4, 0.4, [0.6, 0.4, 0.2]);
+    let path = write_quads("thinwall", &[plus, minus]);
+    let scene = scene::load(&path).unwrap();
+    let g = gpu();
+    for backend in [Backend::Cpu, Backend::OpenCl(&g)] {
+        let v = voxelize_at(&scene, 0.25, &backend).unwrap();
+        for (dir, albedo, x) in [(Direction::PosX, [0.2, 0.4, 0.6], 0.6), (Direction::NegX, [0.6, 0.4, 0.2], 0.55)] {
+            let side: Vec<_> = v.patches.iter().filter(|p| p.direction == dir).collect();
+            let area: f64 = side.iter().map(|p| p.area).sum();
+            assert!((area - 0.64).abs() < 1e-5, "{} side area {area}", dir.name());
+            for p in &side {
+                assert!((p.centre[0] - x).abs() < 1e-6);
+                for c in 0..3 {
+                    assert!((p.albedo[c] - albedo[c]).abs() < 1e-6);
+                }
+            }
+        }
+        assert_eq!(v.stats.covered_groups, 0);
+    }
+}
+
+#[test]
+fn scene_smaller_than_one_voxel_gives_six_patches() {
+    // A closed cube of side 0.01 (faces outward) inside one 1.0 voxel.
+    let s = 0.005;
+    let c = [0.3, 0.3, 0.3];
+    let x = [1.0, 0.0, 0.0];
+    let y = [0.0, 1.0, 0.0];
+    let z = [0.0, 0.0, 1.0];
+    let at = |d: [f64; 3], k: f64| -> [f64; 3] { std::array::from_fn(|i| c[i] + k * s * d[i]) };
+    let a = [0.5; 3];
+    let faces: Vec<Quad> = vec![
+        quad(at(x, 1.0), y, z, s, s, a),
+        quad(at(x, -1.0), z, y, s, s, a),
+        quad(at(y, 1.0), z, x, s, s, a),
+        quad(at(y, -1.0), x, z, s, s, a),
+        quad(at(z, 1.0), x, y, s, s, a),
+        quad(at(z, -1.0), y, x, s, s, a),
+    ];
+    let path = write_quads("tiny", &faces);
+    let scene = scene::load(&path).unwrap();
+    let g = gpu();
+    for backend in [Backend::Cpu, Backend::OpenCl(&g)] {
+        let v = voxelize_at(&scene, 1.0, &backend).unwrap();
+        assert_eq!(v.stats.occupied_voxels, 1);
+        assert_eq!(v.patches.len(), 6);
+        for (p, d) in v.patches.iter().zip(Direction::ALL) {
+            assert_eq!(p.direction, d);
+            // Relative 1e-4: the 0.01 edges are stored as differences of f32
+            // coordinates near 0.3 (ulp 3e-8, so ~1e-5 relative per edge).
+            assert!((p.area / 1e-4 - 1.0).abs() < 1e-4, "area {}", p.area);
+            assert!((dot(p.normal, d.vector()) - 1.0).abs() < 1e-9);
+        }
+    }
+    // The patch-count search copes with a scene below one voxel too.
+    let v = voxelize::voxelize(&scene, Resolution::Patches(6), &Backend::Cpu).unwrap();
+    assert_eq!(v.patches.len(), 6);
+}
+
+#[test]
+fn fine_grids_use_memory_proportional_to_occupied_voxels() {
+    // Two small triangles at opposite corners of a 1000-unit box at voxel
+    // size 0.25: a ~4000³ grid (6.4e10 voxels; a dense byte grid would take
+    // 64 GB). Sparse storage makes this instant.
+    let a = quad([0.125, 0.125, 0.125], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.1, 0.1, [0.5; 3]);
+    let b = quad([999.125, 999.125, 999.125], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.1, 0.1, [0.5; 3]);
+    let scene = scene::load(&write_quads("sparse", &[a, b])).unwrap();
+    let v = voxelize_at(&scene, 0.25, &Backend::OpenCl(&gpu())).unwrap();
+    assert!(v.grid.dims.iter().all(|&d| d >= 3999), "{:?}", v.grid.dims);
+    assert_eq!(v.stats.occupied_voxels, 2);
+    assert_eq!(v.patches.len(), 2);
+    // Beyond MAX_DIM voxels per axis the request is refused with a reason.
+    let err = voxelize_at(&scene, 0.1, &Backend::Cpu).unwrap_err().to_string();
+    assert!(err.contains("too small"), "{err}");
+}
+
+#[test]
+fn patch_count_search_reaches_the_target() {
+    let scene = scene::load(&common::bundled("cornell_box")).unwrap();
+    let v = voxelize::voxelize(&scene, Resolution::Patches(1500), &Backend::OpenCl(&gpu())).unwrap();
+    let n = v.patches.len() as f64;
+    assert!((n / 1500.0 - 1.0).abs() < 0.1, "{n} patches for a target of 1500 ({:?})", v.stats.search);
+}
+
+#[test]
+fn cornell_box_patches_are_physical() {
+    let scene = scene::load(&common::bundled("cornell_box")).unwrap();
+    let v = voxelize_at(&scene, 20.0, &Backend::Cpu).unwrap();
+    let albedo_max = scene
+        .materials
+        .iter()
+        .map(|m| m.albedo.iter().cloned().fold(0.0f32, f32::max))
+        .fold(0.0f32, f32::max) as f64;
+    for p in &v.patches {
+        assert!((dot(p.normal, p.normal) - 1.0).abs() < 1e-12);
+        assert!(p.area > 0.0 && p.area <= 3.0 * 400.0, "area {} above 3 voxel faces", p.area);
+        assert!(p.albedo.iter().all(|&a| (0.0..=albedo_max + 1e-12).contains(&a)));
+    }
+    // Only the floor under the two blocks faces into solid matter; the rest
+    // of the box's area is kept (the light quad hides a bit of ceiling).
+    let kept = v.stats.patch_area / v.stats.scene_area;
+    assert!(kept > 0.85 && kept <= 1.0 + 1e-9, "kept {kept} of the area");
+    // Emitted power is conserved: Σ E_p A_p over patches equals Ke × the
+    // light quad's area (130 mm × 105 mm), up to f64 rounding.
+    let power: f64 = v.patches.iter().map(|p| p.emission[0] * p.area).sum();
+    let expected = 17.0 * 130.0 * 105.0;
+    assert!((power - expected).abs() / expected < 1e-9, "emitted power {power}, expected {expected}");
+}
