@@ -172,13 +172,18 @@ impl std::fmt::Display for BakeReport {
         writeln!(f, "patches: {} ({})", v.patches, per_dir.join(", "))?;
         writeln!(
             f,
-            "area: patches {:.6e} of scene {:.6e} ({:.2} %); {} staircase groups merged; {} groups facing into solid dropped (area {:.3e}); {} albedo components clamped",
+            "area: patches {:.6e} of scene {:.6e} ({:.2} %); {} staircase groups merged; {} groups facing into solid dropped (area {:.3e}: {}); {} albedo components clamped",
             v.patch_area,
             v.scene_area,
             100.0 * v.patch_area / v.scene_area.max(f64::MIN_POSITIVE),
             v.merged_groups,
             v.covered_groups,
             v.covered_area,
+            crate::voxelize::Direction::ALL
+                .iter()
+                .map(|d| format!("{} {:.3e}", d.name(), v.covered_area_per_direction[*d as usize]))
+                .collect::<Vec<_>>()
+                .join(", "),
             v.clamped_albedo
         )?;
         if v.search.len() > 1 {

@@ -41,12 +41,9 @@
 
 pub mod bake;
 pub mod bench;
-pub mod bvh;
 pub mod compute;
 pub mod error;
-pub mod form_factor;
 pub mod generate;
-pub mod npy;
 pub mod scene;
 pub mod scene_config;
 pub mod voxelize;

@@ -19,14 +19,24 @@
 //!    projected-area weights `A_t (n_t · m)`.
 //!
 //! **Neighbour rule.** A group facing direction `d` in voxel `v` whose
-//! neighbour `v + d` is empty becomes a patch. If the neighbour is occupied
-//! and also holds geometry facing `d`, the surface continues there (a plate
-//! at an angle to the grid crosses voxel layers as a staircase), so the
-//! group is merged into the neighbour's group, following `d` until a voxel
-//! with an empty neighbour; this keeps the plate's area. If the neighbour is
-//! occupied by geometry not facing `d`, the group faces into solid matter
-//! (the floor under a box) and is dropped; dropped groups and their area are
-//! counted and reported.
+//! neighbour `v + d` is empty becomes a patch (the thesis's rule). With a
+//! surface voxelization that rule alone loses a strip of every surface
+//! along every edge where it meets another (the wall's voxel next to the
+//! floor has the floor in its neighbour), 16 % of the Cornell box's area,
+//! so the occupied neighbour is looked at more closely:
+//! - it holds geometry facing `d` too: the surface continues there (a plate
+//!   at an angle to the grid crosses voxel layers as a staircase), so the
+//!   group is merged into the neighbour's, following `d` until a voxel whose
+//!   neighbour is open; this keeps the plate's area;
+//! - it holds geometry facing `−d`: a surface looks back at this one from
+//!   less than two voxels away (a box standing on the floor, or a gap the
+//!   grid cannot resolve); the group is dropped, counted and reported;
+//! - it holds only geometry perpendicular to `d`: a corner; the neighbour
+//!   does not hide the group, which becomes a patch.
+//!
+//! A closed solid standing on a surface without a modelled bottom face
+//! leaves patches under it; they see nothing and the form-factor stage
+//! removes them (row sum 0).
 //!
 //! **Boundaries.** Voxel boundaries lie at integer multiples of the voxel
 //! size in world space, so a grid does not shift when the scene grows. A
@@ -118,6 +128,11 @@ impl Direction {
             2
         };
         Direction::ALL[2 * axis + usize::from(n[axis] < 0.0)]
+    }
+
+    /// The direction facing the other way.
+    pub fn opposite(self) -> Direction {
+        Direction::ALL[self as usize ^ 1]
     }
 
     pub fn name(self) -> &'static str {
@@ -264,9 +279,12 @@ pub struct VoxelStats {
     pub patches_per_direction: [u64; 6],
     /// Voxel groups merged into their neighbour's (staircases).
     pub merged_groups: u64,
-    /// Voxel groups facing into solid matter, dropped, and their area.
+    /// Voxel groups facing a surface that looks back from the neighbour
+    /// voxel, dropped, and their area.
     pub covered_groups: u64,
     pub covered_area: f64,
+    /// Covered area by facing direction (+x, −x, +y, −y, +z, −z).
+    pub covered_area_per_direction: [f64; 6],
     /// Patch albedo components outside [0, ALBEDO_MAX] after averaging, clamped.
     pub clamped_albedo: u64,
     /// Total patch area and total scene area (scene units²).
@@ -721,26 +739,28 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
     }
     stats.occupied_voxels = holds.len() as u64;
 
-    // Neighbour rule: follow `d` while the neighbour is occupied and holds
-    // geometry facing `d`; stop at an empty neighbour (a patch) or at one
-    // without such geometry (covered).
+    // Neighbour rule (module doc): follow `d` while the neighbour holds
+    // geometry facing `d`; stop at an open neighbour (a patch), at one facing
+    // back (covered), or at one holding only perpendicular geometry (a patch).
     let mut targets: BTreeMap<(u64, Direction), ([u32; 3], Acc)> = BTreeMap::new();
     for ((key, dir), voxel, acc) in &groups {
         let mut at = *voxel;
         let mut covered = false;
+        let (same, back) = (1u8 << *dir as u8, 1u8 << dir.opposite() as u8);
         while let Some(nb) = grid.neighbour(at, *dir) {
             match holds.get(&grid.key(nb)) {
-                None => break,
-                Some(mask) if mask & (1 << *dir as u8) != 0 => at = nb,
-                Some(_) => {
+                Some(mask) if mask & same != 0 => at = nb,
+                Some(mask) if mask & back != 0 => {
                     covered = true;
                     break;
                 }
+                _ => break,
             }
         }
         if covered {
             stats.covered_groups += 1;
             stats.covered_area += acc.area;
+            stats.covered_area_per_direction[*dir as usize] += acc.area;
             continue;
         }
         let target = (grid.key(at), *dir);

@@ -316,10 +316,17 @@ fn cornell_box_patches_are_physical() {
         assert!(p.area > 0.0 && p.area <= 3.0 * 400.0, "area {} above 3 voxel faces", p.area);
         assert!(p.albedo.iter().all(|&a| (0.0..=albedo_max + 1e-12).contains(&a)));
     }
-    // Only the floor under the two blocks faces into solid matter; the rest
-    // of the box's area is kept (the light quad hides a bit of ceiling).
+    // The Cornell blocks have no bottom faces, and every surface meets
+    // others only at corners, which the neighbour rule keeps: all area is
+    // kept, none dropped (before the corner rule, 16 % was lost).
+    // Slivers below MIN_PIECE_AREA (reported) account for the rest, up to
+    // f32 rounding: the scene's area and the grid coordinates come from the
+    // f32 vertex positions by different arithmetic (relative f32 epsilon).
     let kept = v.stats.patch_area / v.stats.scene_area;
-    assert!(kept > 0.85 && kept <= 1.0 + 1e-9, "kept {kept} of the area");
+    let with_slivers = (v.stats.patch_area + v.stats.sliver_area) / v.stats.scene_area;
+    assert!((with_slivers - 1.0).abs() < f32::EPSILON as f64, "kept {kept} of the area, {with_slivers} with slivers");
+    assert!(kept > 1.0 - 1e-6, "kept {kept}");
+    assert_eq!(v.stats.covered_groups, 0);
     // Emitted power is conserved: Σ E_p A_p over patches equals Ke × the
     // light quad's area (130 mm × 105 mm), up to f64 rounding.
     let power: f64 = v.patches.iter().map(|p| p.emission[0] * p.area).sum();

@@ -1,0 +1,1575 @@
+//! Scene loading: OBJ + MTL through `tobj`, triangulated, validated and
+//! repaired with every repair counted (DESIGN.md section 4: nothing is
+//! silently clamped or dropped).
+//!
+//! [`load`] reads the OBJ with `tobj` (triangulated, single index, points
+//! and lines ignored), merges every model into one vertex array and gives
+//! each triangle a material. The albedo of a material is `Kd` times the
+//! linear-space mean of its `map_Kd` texture (decoded as sRGB, converted to
+//! linear per pixel with the exact piecewise EOTF, then averaged), clamped
+//! to [`ALBEDO_MAX`]; the emission is `Ke`. Bad input is an error that names
+//! the file and the line: malformed records, non-finite or huge coordinates
+//! ([`MAX_ABS_COORDINATE`]), face indices out of range, negative or
+//! non-finite `Kd`/`Ke`. Recoverable problems are repaired and counted in
+//! [`Repairs`] with a human-readable warning: a missing MTL file, material
+//! or texture falls back to a default, degenerate triangles are skipped,
+//! albedo above [`ALBEDO_MAX`] is clamped.
+//!
+//! `tobj` reports no line numbers, so the OBJ is fed to it through a line
+//! tap that counts lines, mirrors its material lookups and stops it before
+//! input that would make it panic (see the notes on [`load`]). Errors that
+//! `tobj` only detects at the end of a face group (an index past the last
+//! vertex) and bad coordinates (which it accepts) are located afterwards by
+//! a streaming second scan of the file that runs only on that error path.
+
+use rayon::prelude::*;
+use serde::Serialize;
+use std::cell::RefCell;
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::fmt;
+use std::fs::File;
+use std::io::{self, BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+
+use crate::error::SceneError;
+
+/// Albedo components are clamped to at most this value: every `ρ < 1` keeps
+/// `T_∞ = F (I − diag(ρ) F)^{-1}` finite, and 0.99 bounds the infinite-bounce
+/// amplification `1/(1 − ρ)` by 100.
+pub const ALBEDO_MAX: f32 = 0.99;
+
+/// Albedo (linear, all three channels) of the default material, used for
+/// triangles without a material, for materials that are named but not
+/// defined, and for materials that have neither `Kd` nor `map_Kd`.
+pub const DEFAULT_ALBEDO: f32 = 0.8;
+
+/// Largest accepted absolute vertex coordinate. The voxel grid works in
+/// `f32`, whose 24-bit mantissa spaces representable values 8 units apart
+/// at 1e8: beyond it grid coordinates and voxel indices computed from them
+/// lose their meaning, and such values in practice come from unit mix-ups
+/// or corrupt files rather than real scenes.
+pub const MAX_ABS_COORDINATE: f32 = 1e8;
+
+/// A triangle whose area is at most this ratio times the square of its
+/// longest edge (computed in `f64`) is degenerate: it is skipped and
+/// counted. The ratio is scale-invariant, so tiny but well-shaped triangles
+/// survive while slivers with collinear vertices do not.
+pub const DEGENERATE_AREA_RATIO: f64 = 1e-12;
+
+/// Name given to the default material (parenthesised so that it is
+/// unlikely to collide with a name from an MTL file).
+pub const DEFAULT_MATERIAL_NAME: &str = "(default)";
+
+/// A material as the bake sees it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Material {
+    /// The name from `newmtl`, or [`DEFAULT_MATERIAL_NAME`].
+    pub name: String,
+    /// Linear RGB albedo used by the bake: `Kd` times the linear average of
+    /// the `map_Kd` texture, clamped to `ALBEDO_MAX`.
+    pub albedo: [f32; 3],
+    /// `Ke`, emitted radiant exitance (linear RGB).
+    pub emission: [f32; 3],
+    /// `Kd` as written in the MTL file. When the file gives no `Kd`, this is
+    /// 1 for a textured material (the texture alone) and [`DEFAULT_ALBEDO`]
+    /// otherwise.
+    pub kd: [f32; 3],
+    /// The diffuse texture, resolved relative to the MTL file, if it loaded.
+    pub diffuse_texture: Option<PathBuf>,
+}
+
+/// Repairs made while loading, each counted.
+#[derive(Clone, Debug, Default, Serialize, PartialEq, Eq)]
+pub struct Repairs {
+    /// Triangles with (near) zero area or repeated vertices, skipped. Faces
+    /// with only one or two vertices (which `tobj` ignores) count here too:
+    /// they are zero-area triangles.
+    pub degenerate_triangles: u64,
+    /// Albedo components above `ALBEDO_MAX` (one per channel per material),
+    /// clamped to it. A component exactly equal to `ALBEDO_MAX` is left as
+    /// it is and not counted.
+    pub clamped_albedo_components: u64,
+    /// Material names used by `usemtl` but defined by no loaded MTL file
+    /// (including names from an MTL file that is missing): default albedo.
+    pub missing_materials: u64,
+    /// Texture files that could not be read or decoded: `Kd` alone used.
+    pub missing_textures: u64,
+    /// Triangles whose geometric normal (from the counter-clockwise winding)
+    /// points against the mean of the file's three vertex normals. Only
+    /// reported: the geometry is kept as the file gives it.
+    pub winding_disagrees_with_normals: u64,
+}
+
+/// A loaded, validated triangle scene. All models of the OBJ are merged into
+/// one vertex array; vertices not used by any kept triangle are dropped.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The OBJ file the scene was loaded from.
+    pub source: PathBuf,
+    /// Vertex positions, each used by at least one triangle.
+    pub positions: Vec<[f32; 3]>,
+    /// Per-vertex normals, empty when the file has none. When only some
+    /// vertices have one, the others get the area-weighted mean of their
+    /// triangles' geometric normals (and a warning says how many).
+    pub normals: Vec<[f32; 3]>,
+    /// Per-vertex texture coordinates, empty when the file has none. When
+    /// only some vertices have them, the others get `[0, 0]` (and a warning
+    /// says how many).
+    pub texcoords: Vec<[f32; 2]>,
+    /// Counter-clockwise triangles (the OBJ's winding), indices into `positions`.
+    pub triangles: Vec<[u32; 3]>,
+    /// Material index of each triangle, into `materials`.
+    pub triangle_material: Vec<u32>,
+    /// The materials used by at least one triangle, in MTL order, followed
+    /// by the default material when some triangle needs it.
+    pub materials: Vec<Material>,
+    /// What the loader repaired, counted.
+    pub repairs: Repairs,
+    /// Human-readable warnings (missing MTL, missing textures, ...).
+    pub warnings: Vec<String>,
+}
+
+/// Axis-aligned bounds as they appear in the JSON summary.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Bounds {
+    /// Smallest coordinate on each axis.
+    pub min: [f32; 3],
+    /// Largest coordinate on each axis.
+    pub max: [f32; 3],
+}
+
+/// What `radiosity info` prints: counts, bounds, areas, repairs, warnings.
+/// Serialises to JSON with the keys named by the fields.
+#[derive(Clone, Debug, Serialize)]
+pub struct SceneSummary {
+    /// The OBJ file the scene came from.
+    pub source: PathBuf,
+    /// Number of triangles.
+    pub triangles: usize,
+    /// Number of vertices.
+    pub vertices: usize,
+    /// Number of materials (including the default one when used).
+    pub materials: usize,
+    /// Number of materials with a nonzero emission.
+    pub emissive_materials: usize,
+    /// Whether the scene carries vertex normals.
+    pub has_normals: bool,
+    /// Whether the scene carries texture coordinates.
+    pub has_texcoords: bool,
+    /// Bounds of the vertices used by triangles.
+    pub bounds: Bounds,
+    /// Total surface area of the triangles.
+    pub area: f64,
+    /// Surface area of the triangles with an emissive material.
+    pub emissive_area: f64,
+    /// The loader's repairs.
+    pub repairs: Repairs,
+    /// The loader's warnings.
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Axis-aligned bounds `(min, max)` of the vertices used by triangles;
+    /// `([0; 3], [0; 3])` for a scene without triangles.
+    pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for tri in &self.triangles {
+            for &v in tri {
+                let p = self.positions[v as usize];
+                for k in 0..3 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+        }
+        if self.triangles.is_empty() {
+            ([0.0; 3], [0.0; 3])
+        } else {
+            (lo, hi)
+        }
+    }
+
+    /// The three corners of triangle `t` in `f64`.
+    fn corners(&self, t: usize) -> [[f64; 3]; 3] {
+        self.triangles[t].map(|v| self.positions[v as usize].map(f64::from))
+    }
+
+    /// Area of triangle `t`, computed in `f64`.
+    pub fn triangle_area(&self, t: usize) -> f64 {
+        let [a, b, c] = self.corners(t);
+        0.5 * norm(cross(sub(b, a), sub(c, a)))
+    }
+
+    /// Unit geometric normal of triangle `t` from its counter-clockwise
+    /// winding, in `f64`; the zero vector for a zero-area triangle (which a
+    /// loaded scene does not contain).
+    pub fn triangle_normal(&self, t: usize) -> [f64; 3] {
+        let [a, b, c] = self.corners(t);
+        let n = cross(sub(b, a), sub(c, a));
+        let len = norm(n);
+        if len > 0.0 {
+            n.map(|x| x / len)
+        } else {
+            [0.0; 3]
+        }
+    }
+
+    /// Total area of all triangles.
+    pub fn surface_area(&self) -> f64 {
+        // Folding from +0.0: `Sum` for floats starts at -0.0, which would
+        // print as "-0" for a scene without emitters.
+        (0..self.triangles.len())
+            .map(|t| self.triangle_area(t))
+            .fold(0.0, |a, b| a + b)
+    }
+
+    /// Total area of the triangles whose material has a nonzero emission.
+    pub fn emissive_area(&self) -> f64 {
+        (0..self.triangles.len())
+            .filter(|&t| is_emissive(&self.materials[self.triangle_material[t] as usize]))
+            .map(|t| self.triangle_area(t))
+            .fold(0.0, |a, b| a + b)
+    }
+
+    /// Counts, bounds, areas, repairs and warnings for `radiosity info` and
+    /// the bake report.
+    pub fn summary(&self) -> SceneSummary {
+        let (min, max) = self.bounds();
+        SceneSummary {
+            source: self.source.clone(),
+            triangles: self.triangles.len(),
+            vertices: self.positions.len(),
+            materials: self.materials.len(),
+            emissive_materials: self.materials.iter().filter(|m| is_emissive(m)).count(),
+            has_normals: !self.normals.is_empty(),
+            has_texcoords: !self.texcoords.is_empty(),
+            bounds: Bounds { min, max },
+            area: self.surface_area(),
+            emissive_area: self.emissive_area(),
+            repairs: self.repairs.clone(),
+            warnings: self.warnings.clone(),
+        }
+    }
+}
+
+/// Whether a material emits light (any channel of `Ke` above zero).
+fn is_emissive(m: &Material) -> bool {
+    m.emission.iter().any(|&e| e > 0.0)
+}
+
+impl fmt::Display for SceneSummary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let r = &self.repairs;
+        let [x0, y0, z0] = self.bounds.min;
+        let [x1, y1, z1] = self.bounds.max;
+        writeln!(f, "scene       {}", self.source.display())?;
+        writeln!(f, "triangles   {}", self.triangles)?;
+        writeln!(
+            f,
+            "vertices    {} (normals: {}, texcoords: {})",
+            self.vertices,
+            if self.has_normals { "yes" } else { "no" },
+            if self.has_texcoords { "yes" } else { "no" }
+        )?;
+        writeln!(
+            f,
+            "materials   {} ({} emissive)",
+            self.materials, self.emissive_materials
+        )?;
+        writeln!(
+            f,
+            "bounds      [{x0:.4}, {y0:.4}, {z0:.4}] .. [{x1:.4}, {y1:.4}, {z1:.4}]"
+        )?;
+        writeln!(f, "area        {:.6}", self.area)?;
+        writeln!(f, "emissive    {:.6}", self.emissive_area)?;
+        writeln!(
+            f,
+            "repairs     {} degenerate triangles skipped, {} albedo components clamped, \
+             {} missing materials, {} missing textures, {} triangles wound against their normals",
+            r.degenerate_triangles,
+            r.clamped_albedo_components,
+            r.missing_materials,
+            r.missing_textures,
+            r.winding_disagrees_with_normals
+        )?;
+        if self.warnings.is_empty() {
+            writeln!(f, "warnings    none")?;
+        } else {
+            writeln!(f, "warnings    {}", self.warnings.len())?;
+            for w in &self.warnings {
+                writeln!(f, "  - {w}")?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The exact piecewise sRGB electro-optical transfer function: an encoded
+/// value in `[0, 1]` to linear light.
+pub fn srgb_to_linear(c: f64) -> f64 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Loading
+// ---------------------------------------------------------------------------
+
+/// The `tobj` options the loader uses: triangles only, one index per vertex.
+// The struct update is needed when another crate in the build enables
+// tobj's `merging` or `reordering` features, which add fields.
+#[allow(clippy::needless_update)]
+fn load_options() -> tobj::LoadOptions {
+    tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    }
+}
+
+/// Loads an OBJ scene with its MTL files and textures, validates it and
+/// repairs what can be repaired (see the module documentation).
+///
+/// Errors: [`SceneError::Io`] when the OBJ cannot be read;
+/// [`SceneError::Parse`] naming the file (OBJ or MTL) and the 1-based line
+/// for malformed records, non-finite or huge coordinates, face indices out
+/// of range, and negative or non-finite `Kd`/`Ke`; [`SceneError::Empty`]
+/// when no triangle remains; [`SceneError::Invalid`] for the rest (more
+/// than `u32::MAX` vertices, or a `tobj` failure that could not be tied to
+/// a line).
+///
+/// Vertices that no face uses are dropped by tobj and not validated. When a
+/// used vertex is bad, the error points at the first bad `v` line of the
+/// file. A missing MTL file is a warning; the names `usemtl` then looks up
+/// in vain are counted in [`Repairs::missing_materials`].
+///
+/// Notes on `tobj` 4.0.5 that shape this function:
+/// - `Ke` is parsed into `Material::emissive`, not `unknown_param`.
+/// - `Ka`/`Kd`/`Ks`/`Ke` with fewer than three numbers panic inside tobj;
+///   the MTL reader here expands the single-value form the MTL spec allows
+///   (`Kd 0.5` means grey) and rejects two values with a line number.
+/// - Relative (negative) face indices that reach before the first
+///   texcoord/normal, and indices near `isize::MAX`, overflow arithmetic in
+///   tobj (a panic with overflow checks on); such faces are rejected before
+///   tobj sees them.
+/// - Absolute face indices are only checked when a face group ends (at the
+///   next `o`/`g`/`usemtl` or at the end of the file), so tobj accepts
+///   forward references within a group and reports an index past the end
+///   late; the second scan finds the face line.
+/// - A mesh where only some faces carry `/vt` or `//vn` indices gets
+///   texcoord/normal arrays shorter than its positions (and misaligned);
+///   such arrays are discarded for that mesh and the values filled in.
+/// - Non-UTF-8 lines make tobj fail with a bare "read error"; the line tap
+///   decodes them lossily instead and warns.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    let file = File::open(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let obj_dir = path.parent().unwrap_or_else(|| Path::new("")).to_path_buf();
+    let state = RefCell::new(ObjState::default());
+
+    let mut tap = LineTap::new(BufReader::with_capacity(1 << 16, file), |line, buf| {
+        obj_line_hook(&state, line, buf)
+    });
+    let result = tobj::load_obj_buf(&mut tap, &load_options(), |relative: &Path| {
+        load_material_library(&state, &obj_dir.join(relative))
+    });
+    let tap = tap.finish();
+    let mut st = state.into_inner();
+
+    if let Some(err) = st.fatal.take() {
+        return Err(err);
+    }
+    let models = match result {
+        Ok((models, _)) => models,
+        Err(err) => return Err(obj_error(path, err, tap)),
+    };
+    if tap.lossy_lines > 0 {
+        st.warnings.push(format!(
+            "{}: {} line(s) were not valid UTF-8 and were decoded lossily (first: line {})",
+            path.display(),
+            tap.lossy_lines,
+            tap.first_lossy_line
+        ));
+    }
+    build_scene(path, models, st)
+}
+
+/// Turns a `tobj` failure on the OBJ into an error naming the file and line.
+fn obj_error(path: &Path, err: tobj::LoadError, tap: TapOutcome) -> SceneError {
+    if let Some((line, message)) = tap.halted {
+        return SceneError::Parse {
+            path: path.to_path_buf(),
+            line,
+            message,
+        };
+    }
+    if let Some(source) = tap.io_error {
+        return SceneError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+    }
+    use tobj::LoadError as E;
+    match err {
+        // These are found when a face group is exported, after its lines
+        // were read: the tap's line is not the culprit, so scan for it.
+        E::FaceVertexOutOfBounds
+        | E::FaceTexCoordOutOfBounds
+        | E::FaceNormalOutOfBounds
+        | E::FaceColorOutOfBounds
+        | E::InvalidPolygon => locate_bad_face(path).unwrap_or_else(|| SceneError::Parse {
+            path: path.to_path_buf(),
+            line: tap.line,
+            message: format!(
+                "{err} in the face group ending at this line (the face could not be \
+                 located): `{}`",
+                clip(&tap.last_line)
+            ),
+        }),
+        _ => SceneError::Parse {
+            path: path.to_path_buf(),
+            line: tap.line,
+            message: format!("{err}: `{}`", clip(&tap.last_line)),
+        },
+    }
+}
+
+/// State shared between the OBJ line hook and the material-library loader
+/// while `tobj` runs (they are called alternately, never nested).
+#[derive(Default)]
+struct ObjState {
+    /// Names defined by the material libraries loaded so far; mirrors the
+    /// lookup table tobj consults at each `usemtl`.
+    defined: HashSet<String>,
+    /// Every material tobj holds, in its order, with the MTL file it came from.
+    materials: Vec<(tobj::Material, PathBuf)>,
+    /// `usemtl` names that were not defined when used, with the first line.
+    missing_names: BTreeMap<String, usize>,
+    /// Numbers of `v`, `vt` and `vn` records read so far.
+    counts: [usize; 3],
+    /// `f` records with one or two vertices, which tobj ignores.
+    short_faces: u64,
+    /// Number of `f` records.
+    faces: u64,
+    warnings: Vec<String>,
+    /// An error found in a material library; it stops the load.
+    fatal: Option<SceneError>,
+}
+
+/// Inspects one OBJ line before tobj parses it: counts records, mirrors
+/// material lookups and rejects face indices that would make tobj panic.
+fn obj_line_hook(state: &RefCell<ObjState>, line_no: usize, buf: &[u8]) -> Result<(), String> {
+    let mut st = state.borrow_mut();
+    if st.fatal.is_some() {
+        return Err("stopped after an error in a material library".to_owned());
+    }
+    // The tap guarantees UTF-8; a failure here would be a bug, so treat the
+    // line as blank rather than panic.
+    let text = std::str::from_utf8(buf).unwrap_or("");
+    let line = strip_newline(text);
+    let mut words = line.split_whitespace();
+    match words.next() {
+        Some("v") => st.counts[0] += 1,
+        Some("vt") => st.counts[1] += 1,
+        Some("vn") => st.counts[2] += 1,
+        Some("f") => {
+            st.faces += 1;
+            let mut vertices = 0;
+            for token in words {
+                vertices += 1;
+                for (kind, part) in token.split('/').take(3).enumerate() {
+                    check_index_early(part, kind, st.counts[kind])
+                        .map_err(|m| format!("{m}: `{}`", clip(line)))?;
+                }
+            }
+            if (1..3).contains(&vertices) {
+                st.short_faces += 1;
+            }
+        }
+        Some("usemtl") => {
+            // The same expression tobj uses to take the name.
+            let name = line.split_once(' ').unwrap_or_default().1.trim();
+            if !name.is_empty() && !st.defined.contains(name) {
+                st.missing_names.entry(name.to_owned()).or_insert(line_no);
+            }
+        }
+        _ => {}
+    }
+    Ok(())
+}
+
+/// What each slot of a face vertex `v/vt/vn` refers to, for messages.
+const INDEX_KINDS: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+
+/// Rejects, before tobj sees them, face indices that are certainly invalid
+/// and that tobj mishandles: zero, relative indices reaching before the
+/// first record, and absurdly large values (which overflow its arithmetic).
+/// Indices past the current count are left to tobj, which allows forward
+/// references within a face group.
+fn check_index_early(part: &str, kind: usize, count: usize) -> Result<(), String> {
+    if part.is_empty() {
+        return Ok(());
+    }
+    // A value tobj cannot parse makes it fail at this very line, with the
+    // right line number; leave that to it.
+    let Ok(x) = part.parse::<isize>() else {
+        return Ok(());
+    };
+    let what = INDEX_KINDS[kind];
+    if x == 0 {
+        return Err(format!(
+            "{what} index 0 is invalid (OBJ indices start at 1)"
+        ));
+    }
+    if x < 0 && x.unsigned_abs() > count {
+        return Err(format!(
+            "relative {what} index {x} reaches before the first {what} (only {count} defined so far)"
+        ));
+    }
+    // No file holds 10^15 records; beyond that tobj's index arithmetic overflows.
+    if x > 1_000_000_000_000_000 {
+        return Err(format!("{what} index {x} is out of range"));
+    }
+    Ok(())
+}
+
+/// Loads one MTL file for tobj and records the outcome in `state`: a
+/// missing file is a warning (its materials get the default albedo), a
+/// malformed one stops the load with an error naming the file and line.
+fn load_material_library(state: &RefCell<ObjState>, path: &Path) -> tobj::MTLLoadResult {
+    // A directory opens but cannot be read; `mtllib` without a name gives one.
+    let opened = if path.is_dir() {
+        Err(io::Error::other("it is a directory"))
+    } else {
+        File::open(path)
+    };
+    let file = match opened {
+        Ok(f) => f,
+        Err(e) => {
+            state.borrow_mut().warnings.push(format!(
+                "material library {} could not be opened ({e}); its materials get the \
+                 default albedo {DEFAULT_ALBEDO}",
+                path.display()
+            ));
+            return Err(tobj::LoadError::OpenFileFailed);
+        }
+    };
+    let mut current = String::new();
+    let mut tap = LineTap::new(BufReader::new(file), |_, buf| {
+        mtl_line_hook(&mut current, buf)
+    });
+    let result = tobj::load_mtl_buf(&mut tap);
+    let tap = tap.finish();
+    let mut st = state.borrow_mut();
+    match result {
+        Ok((materials, map)) => {
+            if tap.lossy_lines > 0 {
+                st.warnings.push(format!(
+                    "{}: {} line(s) were not valid UTF-8 and were decoded lossily (first: line {})",
+                    path.display(),
+                    tap.lossy_lines,
+                    tap.first_lossy_line
+                ));
+            }
+            for m in &materials {
+                st.defined.insert(m.name.clone());
+                st.materials.push((m.clone(), path.to_path_buf()));
+            }
+            Ok((materials, map))
+        }
+        Err(err) => {
+            let error = if let Some((line, message)) = tap.halted {
+                SceneError::Parse {
+                    path: path.to_path_buf(),
+                    line,
+                    message,
+                }
+            } else if let Some(source) = tap.io_error {
+                SceneError::Io {
+                    path: path.to_path_buf(),
+                    source,
+                }
+            } else {
+                SceneError::Parse {
+                    path: path.to_path_buf(),
+                    line: tap.line,
+                    message: format!("{err}: `{}`", clip(&tap.last_line)),
+                }
+            };
+            st.fatal.get_or_insert(error);
+            Err(err)
+        }
+    }
+}
+
+/// Inspects one MTL line before tobj parses it. Colour records get their
+/// numbers checked (tobj panics on fewer than three), the one-number form
+/// is expanded to three, and `Kd`/`Ke` must be finite and non-negative.
+/// `current` tracks the material being defined, for messages.
+fn mtl_line_hook(current: &mut String, buf: &mut Vec<u8>) -> Result<(), String> {
+    let text = std::str::from_utf8(buf).unwrap_or("");
+    let line = strip_newline(text).trim();
+    let mut words = line.split_whitespace();
+    let key = match words.next() {
+        Some("newmtl") => {
+            // The same expression tobj uses to take the name.
+            *current = line[6..].trim().to_owned();
+            return Ok(());
+        }
+        Some("Ka") => "Ka",
+        Some("Kd") => "Kd",
+        Some("Ks") => "Ks",
+        Some("Ke") => "Ke",
+        _ => return Ok(()),
+    };
+    let material = if current.is_empty() {
+        "(before any newmtl)".to_owned()
+    } else {
+        format!("`{current}`")
+    };
+    let tokens: Vec<&str> = words.collect();
+    if tokens.is_empty() || tokens.len() == 2 {
+        return Err(format!(
+            "material {material}: `{key}` needs 1 or 3 numbers, found {}: `{}`",
+            tokens.len(),
+            clip(line)
+        ));
+    }
+    let mut values = [0.0f32; 3];
+    for (k, token) in tokens.iter().take(3).enumerate() {
+        values[k] = token.parse().map_err(|_| {
+            format!(
+                "material {material}: `{key}` value `{token}` is not a number: `{}`",
+                clip(line)
+            )
+        })?;
+    }
+    if tokens.len() == 1 {
+        values = [values[0]; 3];
+        let expanded = format!("{key} {0} {0} {0}\n", tokens[0]).into_bytes();
+        *buf = expanded;
+    }
+    if (key == "Kd" || key == "Ke") && values.iter().any(|v| !v.is_finite() || *v < 0.0) {
+        return Err(format!(
+            "material {material}: {key} {:?} has a negative or non-finite component",
+            values
+        ));
+    }
+    Ok(())
+}
+
+/// Strips the line ending the way `BufRead::lines` does.
+fn strip_newline(text: &str) -> &str {
+    let text = text.strip_suffix('\n').unwrap_or(text);
+    text.strip_suffix('\r').unwrap_or(text)
+}
+
+/// Shortens a line for an error message.
+fn clip(line: &str) -> String {
+    const MAX: usize = 120;
+    let line = strip_newline(line).trim();
+    if line.chars().count() <= MAX {
+        line.to_owned()
+    } else {
+        let head: String = line.chars().take(MAX).collect();
+        format!("{head}...")
+    }
+}
+
+// ---------------------------------------------------------------------------
+// The line tap
+// ---------------------------------------------------------------------------
+
+/// A `BufRead` adapter that hands its reader one line at a time, so that it
+/// knows which line the consumer is on. Each line is made valid UTF-8
+/// (lossily, counted) and passed to a hook that may inspect or rewrite it,
+/// or stop the reading with a message.
+struct LineTap<R, F> {
+    inner: R,
+    hook: F,
+    buf: Vec<u8>,
+    pos: usize,
+    line: usize,
+    halted: Option<(usize, String)>,
+    io_error: Option<io::Error>,
+    lossy_lines: u64,
+    first_lossy_line: usize,
+}
+
+/// What a tap knows after its consumer stopped.
+struct TapOutcome {
+    /// 1-based number of the last line handed out (0 if none).
+    line: usize,
+    /// The text of that line.
+    last_line: String,
+    /// The line and message with which the hook stopped the reading.
+    halted: Option<(usize, String)>,
+    /// An error of the underlying reader.
+    io_error: Option<io::Error>,
+    lossy_lines: u64,
+    first_lossy_line: usize,
+}
+
+impl<R: BufRead, F: FnMut(usize, &mut Vec<u8>) -> Result<(), String>> LineTap<R, F> {
+    fn new(inner: R, hook: F) -> Self {
+        LineTap {
+            inner,
+            hook,
+            buf: Vec::new(),
+            pos: 0,
+            line: 0,
+            halted: None,
+            io_error: None,
+            lossy_lines: 0,
+            first_lossy_line: 0,
+        }
+    }
+
+    fn finish(self) -> TapOutcome {
+        TapOutcome {
+            line: self.line,
+            last_line: String::from_utf8_lossy(&self.buf).into_owned(),
+            halted: self.halted,
+            io_error: self.io_error,
+            lossy_lines: self.lossy_lines,
+            first_lossy_line: self.first_lossy_line,
+        }
+    }
+}
+
+impl<R: BufRead, F: FnMut(usize, &mut Vec<u8>) -> Result<(), String>> BufRead for LineTap<R, F> {
+    fn fill_buf(&mut self) -> io::Result<&[u8]> {
+        if self.pos >= self.buf.len() {
+            if self.halted.is_some() || self.io_error.is_some() {
+                return Err(io::Error::other("reading was stopped"));
+            }
+            self.buf.clear();
+            self.pos = 0;
+            match self.inner.read_until(b'\n', &mut self.buf) {
+                Ok(0) => return Ok(&[]),
+                Ok(_) => {}
+                Err(e) => {
+                    let copy = io::Error::new(e.kind(), e.to_string());
+                    self.io_error = Some(e);
+                    return Err(copy);
+                }
+            }
+            self.line += 1;
+            // A UTF-8 byte order mark would glue itself to the first keyword.
+            if self.line == 1 && self.buf.starts_with(b"\xEF\xBB\xBF") {
+                self.buf.drain(..3);
+            }
+            if std::str::from_utf8(&self.buf).is_err() {
+                self.buf = String::from_utf8_lossy(&self.buf).into_owned().into_bytes();
+                if self.lossy_lines == 0 {
+                    self.first_lossy_line = self.line;
+                }
+                self.lossy_lines += 1;
+            }
+            if let Err(message) = (self.hook)(self.line, &mut self.buf) {
+                self.halted = Some((self.line, message));
+                return Err(io::Error::other("reading was stopped"));
+            }
+        }
+        Ok(&self.buf[self.pos..])
+    }
+
+    fn consume(&mut self, amount: usize) {
+        self.pos = (self.pos + amount).min(self.buf.len());
+    }
+}
+
+impl<R: BufRead, F: FnMut(usize, &mut Vec<u8>) -> Result<(), String>> Read for LineTap<R, F> {
+    fn read(&mut self, out: &mut [u8]) -> io::Result<usize> {
+        let available = self.fill_buf()?;
+        let n = available.len().min(out.len());
+        out[..n].copy_from_slice(&available[..n]);
+        self.consume(n);
+        Ok(n)
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Second scans (error path only)
+// ---------------------------------------------------------------------------
+
+/// Streams the lines of `path` (lossily decoded) to `f` with their 1-based
+/// numbers until `f` returns `Some`. Never holds more than one line.
+fn scan_lines<T>(
+    path: &Path,
+    mut f: impl FnMut(usize, &str) -> Option<T>,
+) -> io::Result<Option<T>> {
+    let mut reader = BufReader::with_capacity(1 << 16, File::open(path)?);
+    let mut buf = Vec::new();
+    let mut line_no = 0;
+    loop {
+        buf.clear();
+        if reader.read_until(b'\n', &mut buf)? == 0 {
+            return Ok(None);
+        }
+        line_no += 1;
+        let text = String::from_utf8_lossy(&buf);
+        if let Some(found) = f(line_no, strip_newline(&text)) {
+            return Ok(Some(found));
+        }
+    }
+}
+
+/// Why a coordinate is rejected, if it is.
+fn coordinate_problem(value: f32) -> Option<&'static str> {
+    if !value.is_finite() {
+        Some("is not finite")
+    } else if value.abs() > MAX_ABS_COORDINATE {
+        Some("exceeds the limit ±1e8 (f32 voxel grid coordinates lose meaning beyond it)")
+    } else {
+        None
+    }
+}
+
+/// Finds the first `v` line whose coordinates (after tobj's optional `w`
+/// division) are non-finite or huge.
+fn locate_bad_vertex(path: &Path) -> Option<SceneError> {
+    let mut vertex = 0usize;
+    let found = scan_lines(path, |line_no, line| {
+        let mut words = line.split_whitespace();
+        if words.next() != Some("v") {
+            return None;
+        }
+        vertex += 1;
+        let mut p = [0.0f32; 3];
+        for c in &mut p {
+            *c = words.next()?.parse().ok()?;
+        }
+        if let (Some(w), None) = (words.next(), words.next()) {
+            let w: f32 = w.parse().ok()?;
+            p = p.map(|c| c / w);
+        }
+        let (axis, value, problem) = (0..3)
+            .find_map(|k| coordinate_problem(p[k]).map(|why| (["x", "y", "z"][k], p[k], why)))?;
+        Some((
+            line_no,
+            format!(
+                "vertex {vertex}: coordinate {axis} = {value} {problem}: `{}`",
+                clip(line)
+            ),
+        ))
+    });
+    let (line, message) = found.ok()??;
+    Some(SceneError::Parse {
+        path: path.to_path_buf(),
+        line,
+        message,
+    })
+}
+
+/// Finds the first `f` line with an index outside the file's records (or
+/// no vertex at all). Two streaming passes: the first counts the records,
+/// the second checks every face against those totals. A face that refers
+/// to a record defined only later is reported when nothing worse exists.
+fn locate_bad_face(path: &Path) -> Option<SceneError> {
+    let mut totals = [0usize; 3];
+    scan_lines(path, |_, line| {
+        match line.split_whitespace().next() {
+            Some("v") => totals[0] += 1,
+            Some("vt") => totals[1] += 1,
+            Some("vn") => totals[2] += 1,
+            _ => {}
+        }
+        None::<()>
+    })
+    .ok()?;
+
+    let mut counts = [0usize; 3];
+    let mut forward: Option<(usize, String)> = None;
+    let found = scan_lines(path, |line_no, line| {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            Some("f") => {
+                let tokens: Vec<&str> = words.collect();
+                if tokens.is_empty() {
+                    return Some((line_no, format!("face without vertices: `{}`", clip(line))));
+                }
+                for token in tokens {
+                    for (kind, part) in token.split('/').take(3).enumerate() {
+                        // tobj ignores texcoord and normal indices when the
+                        // file has no such records.
+                        if part.is_empty() || (kind > 0 && totals[kind] == 0) {
+                            continue;
+                        }
+                        let Ok(x) = part.parse::<i64>() else { continue };
+                        let what = INDEX_KINDS[kind];
+                        let index = if x < 0 {
+                            counts[kind] as i64 + x + 1
+                        } else {
+                            x
+                        };
+                        if index < 1 || index > totals[kind] as i64 {
+                            return Some((
+                                line_no,
+                                format!(
+                                    "face refers to {what} {x}, but the file defines {} {what}(s): `{}`",
+                                    totals[kind],
+                                    clip(line)
+                                ),
+                            ));
+                        }
+                        if index > counts[kind] as i64 && forward.is_none() {
+                            forward = Some((
+                                line_no,
+                                format!(
+                                    "face refers to {what} {x} before it is defined (only {} \
+                                     precede this line): `{}`",
+                                    counts[kind],
+                                    clip(line)
+                                ),
+                            ));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+        None
+    })
+    .ok()?;
+    let (line, message) = found.or(forward)?;
+    Some(SceneError::Parse {
+        path: path.to_path_buf(),
+        line,
+        message,
+    })
+}
+
+// ---------------------------------------------------------------------------
+// Building the scene
+// ---------------------------------------------------------------------------
+
+/// Merges tobj's models, validates and repairs them and resolves materials.
+fn build_scene(
+    path: &Path,
+    models: Vec<tobj::Model>,
+    mut st: ObjState,
+) -> Result<Scene, SceneError> {
+    let invalid = |message: String| SceneError::Invalid {
+        path: path.to_path_buf(),
+        message,
+    };
+
+    // Merge all models into one vertex array, remembering which vertices
+    // carry a normal / texcoord from the file.
+    let mut positions: Vec<[f32; 3]> = Vec::new();
+    let mut normals: Vec<[f32; 3]> = Vec::new();
+    let mut has_normal: Vec<bool> = Vec::new();
+    let mut texcoords: Vec<[f32; 2]> = Vec::new();
+    let mut has_texcoord: Vec<bool> = Vec::new();
+    let mut triangles: Vec<[u32; 3]> = Vec::new();
+    let mut tri_material: Vec<Option<usize>> = Vec::new();
+    let mut misaligned_meshes = 0usize;
+    for model in &models {
+        let mesh = &model.mesh;
+        let n = mesh.positions.len() / 3;
+        let base = positions.len();
+        if base + n > u32::MAX as usize {
+            return Err(invalid(format!(
+                "more than {} vertices after triangulation; split the scene",
+                u32::MAX
+            )));
+        }
+        positions.extend(mesh.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+        let mesh_normals = mesh.normals.len() == 3 * n;
+        let mesh_texcoords = mesh.texcoords.len() == 2 * n;
+        if (!mesh.normals.is_empty() && !mesh_normals)
+            || (!mesh.texcoords.is_empty() && !mesh_texcoords)
+        {
+            misaligned_meshes += 1;
+        }
+        if mesh_normals {
+            normals.extend(mesh.normals.chunks_exact(3).map(|v| [v[0], v[1], v[2]]));
+        } else {
+            normals.resize(base + n, [0.0; 3]);
+        }
+        has_normal.resize(base + n, mesh_normals && n > 0);
+        if mesh_texcoords {
+            texcoords.extend(mesh.texcoords.chunks_exact(2).map(|v| [v[0], v[1]]));
+        } else {
+            texcoords.resize(base + n, [0.0; 2]);
+        }
+        has_texcoord.resize(base + n, mesh_texcoords && n > 0);
+        for t in mesh.indices.chunks_exact(3) {
+            if t.iter().any(|&i| i as usize >= n) {
+                return Err(invalid(format!(
+                    "tobj produced an index past the vertices of model `{}`",
+                    model.name
+                )));
+            }
+            triangles.push([t[0], t[1], t[2]].map(|i| (base + i as usize) as u32));
+            tri_material.push(mesh.material_id);
+        }
+    }
+    if misaligned_meshes > 0 {
+        st.warnings.push(format!(
+            "{misaligned_meshes} group(s) have texture coordinates or normals on only some faces; \
+             those values were discarded for these groups and filled in"
+        ));
+    }
+
+    // Every vertex tobj returns is used by some face: reject bad coordinates.
+    if let Some((vertex, p)) = positions
+        .iter()
+        .enumerate()
+        .find(|(_, p)| p.iter().any(|&c| coordinate_problem(c).is_some()))
+    {
+        return Err(locate_bad_vertex(path).unwrap_or_else(|| {
+            invalid(format!(
+                "a vertex has an invalid coordinate {p:?} (merged vertex {vertex}; its line \
+                 could not be located)"
+            ))
+        }));
+    }
+
+    // Non-finite normals or texcoords from the file count as absent.
+    let mut bad_attributes = 0usize;
+    for (v, n) in normals.iter().enumerate() {
+        if has_normal[v] && n.iter().any(|c| !c.is_finite()) {
+            has_normal[v] = false;
+            bad_attributes += 1;
+        }
+    }
+    for (v, t) in texcoords.iter().enumerate() {
+        if has_texcoord[v] && t.iter().any(|c| !c.is_finite()) {
+            has_texcoord[v] = false;
+            bad_attributes += 1;
+        }
+    }
+    if bad_attributes > 0 {
+        st.warnings.push(format!(
+            "{bad_attributes} non-finite normal(s) or texture coordinate(s) were replaced"
+        ));
+    }
+
+    if triangles.is_empty() {
+        let detail = if st.faces == 0 {
+            "the file has no faces".to_owned()
+        } else {
+            format!(
+                "no face has 3 or more vertices ({} point/line faces ignored)",
+                st.short_faces
+            )
+        };
+        return Err(SceneError::Empty {
+            path: path.to_path_buf(),
+            detail,
+        });
+    }
+
+    // Skip degenerate triangles, check winding against the file's normals.
+    let mut repairs = Repairs {
+        degenerate_triangles: st.short_faces,
+        ..Repairs::default()
+    };
+    let total = triangles.len();
+    let mut kept: Vec<([u32; 3], Option<usize>)> = Vec::with_capacity(total);
+    for (tri, mat) in triangles.into_iter().zip(tri_material) {
+        let [a, b, c] = tri.map(|v| positions[v as usize].map(f64::from));
+        let cross_ab_ac = cross(sub(b, a), sub(c, a));
+        let area = 0.5 * norm(cross_ab_ac);
+        let longest = dot(sub(b, a), sub(b, a))
+            .max(dot(sub(c, b), sub(c, b)))
+            .max(dot(sub(a, c), sub(a, c)));
+        let repeated = tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2];
+        if repeated || area <= DEGENERATE_AREA_RATIO * longest {
+            repairs.degenerate_triangles += 1;
+            continue;
+        }
+        if tri.iter().all(|&v| has_normal[v as usize]) {
+            let mean = tri
+                .iter()
+                .map(|&v| normals[v as usize].map(f64::from))
+                .fold([0.0; 3], add);
+            if dot(cross_ab_ac, mean) < 0.0 {
+                repairs.winding_disagrees_with_normals += 1;
+            }
+        }
+        kept.push((tri, mat));
+    }
+    if kept.is_empty() {
+        return Err(SceneError::Empty {
+            path: path.to_path_buf(),
+            detail: format!("all {total} triangles are degenerate"),
+        });
+    }
+    if repairs.winding_disagrees_with_normals > 0 {
+        st.warnings.push(format!(
+            "{} triangle(s) are wound against their vertex normals (kept as they are)",
+            repairs.winding_disagrees_with_normals
+        ));
+    }
+
+    // Drop vertices no kept triangle uses and renumber.
+    let mut remap = vec![u32::MAX; positions.len()];
+    let mut used: Vec<u32> = Vec::new();
+    let mut out_triangles = Vec::with_capacity(kept.len());
+    for (tri, _) in &kept {
+        out_triangles.push(tri.map(|v| {
+            let slot = &mut remap[v as usize];
+            if *slot == u32::MAX {
+                *slot = used.len() as u32;
+                used.push(v);
+            }
+            *slot
+        }));
+    }
+    let out_positions: Vec<[f32; 3]> = used.iter().map(|&v| positions[v as usize]).collect();
+    let any_normal = used.iter().any(|&v| has_normal[v as usize]);
+    let any_texcoord = used.iter().any(|&v| has_texcoord[v as usize]);
+
+    let out_normals = if any_normal {
+        let flags: Vec<bool> = used.iter().map(|&v| has_normal[v as usize]).collect();
+        let given: Vec<[f32; 3]> = used.iter().map(|&v| normals[v as usize]).collect();
+        let missing = flags.iter().filter(|&&f| !f).count();
+        if missing > 0 {
+            st.warnings.push(format!(
+                "{missing} of {} vertices have no usable normal in the file; filled with the \
+                 area-weighted mean of their triangles' normals",
+                used.len()
+            ));
+        }
+        fill_normals(&out_positions, &out_triangles, given, &flags)
+    } else {
+        Vec::new()
+    };
+    let out_texcoords = if any_texcoord {
+        let missing = used.iter().filter(|&&v| !has_texcoord[v as usize]).count();
+        if missing > 0 {
+            st.warnings.push(format!(
+                "{missing} of {} vertices have no usable texture coordinate in the file; set to [0, 0]",
+                used.len()
+            ));
+        }
+        used.iter()
+            .map(|&v| {
+                if has_texcoord[v as usize] {
+                    texcoords[v as usize]
+                } else {
+                    [0.0; 2]
+                }
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+
+    // Materials: those used, in tobj's (MTL) order, then the default.
+    let mut used_ids: Vec<usize> = kept.iter().filter_map(|(_, m)| *m).collect();
+    used_ids.sort_unstable();
+    used_ids.dedup();
+    if let Some(&bad) = used_ids.iter().find(|&&id| id >= st.materials.len()) {
+        return Err(invalid(format!(
+            "tobj returned an unknown material id {bad}"
+        )));
+    }
+    let needs_default = kept.iter().any(|(_, m)| m.is_none());
+    let (mut materials, texture_failures) =
+        resolve_materials(&st.materials, &used_ids, &mut st.warnings)?;
+    repairs.missing_textures = texture_failures;
+    if needs_default {
+        materials.push(Material {
+            name: DEFAULT_MATERIAL_NAME.to_owned(),
+            albedo: [DEFAULT_ALBEDO; 3],
+            emission: [0.0; 3],
+            kd: [DEFAULT_ALBEDO; 3],
+            diffuse_texture: None,
+        });
+    }
+    let default_index = (materials.len() - 1) as u32;
+    let mut material_index = vec![u32::MAX; st.materials.len()];
+    for (k, &id) in used_ids.iter().enumerate() {
+        material_index[id] = k as u32;
+    }
+    let triangle_material: Vec<u32> = kept
+        .iter()
+        .map(|(_, m)| m.map_or(default_index, |id| material_index[id]))
+        .collect();
+
+    for m in &mut materials {
+        for c in &mut m.albedo {
+            if *c > ALBEDO_MAX {
+                *c = ALBEDO_MAX;
+                repairs.clamped_albedo_components += 1;
+            }
+        }
+    }
+    if repairs.clamped_albedo_components > 0 {
+        st.warnings.push(format!(
+            "{} albedo component(s) above {ALBEDO_MAX} were clamped to it",
+            repairs.clamped_albedo_components
+        ));
+    }
+
+    repairs.missing_materials = st.missing_names.len() as u64;
+    if !st.missing_names.is_empty() {
+        let mut names: Vec<String> = st
+            .missing_names
+            .iter()
+            .take(5)
+            .map(|(name, line)| format!("`{name}` (line {line})"))
+            .collect();
+        if st.missing_names.len() > 5 {
+            names.push(format!("and {} more", st.missing_names.len() - 5));
+        }
+        st.warnings.push(format!(
+            "{} material(s) used but not defined, given the default albedo {DEFAULT_ALBEDO}: {}",
+            st.missing_names.len(),
+            names.join(", ")
+        ));
+    }
+    if repairs.degenerate_triangles > 0 {
+        st.warnings.push(format!(
+            "{} degenerate triangle(s) skipped",
+            repairs.degenerate_triangles
+        ));
+    }
+
+    Ok(Scene {
+        source: path.to_path_buf(),
+        positions: out_positions,
+        normals: out_normals,
+        texcoords: out_texcoords,
+        triangles: out_triangles,
+        triangle_material,
+        materials,
+        repairs,
+        warnings: st.warnings,
+    })
+}
+
+/// Keeps the normals the file gives (`flags`) and fills the others with the
+/// area-weighted mean of the adjacent triangles' geometric normals.
+fn fill_normals(
+    positions: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+    mut normals: Vec<[f32; 3]>,
+    flags: &[bool],
+) -> Vec<[f32; 3]> {
+    if flags.iter().all(|&f| f) {
+        return normals;
+    }
+    let mut sum = vec![[0.0f64; 3]; positions.len()];
+    let mut any = vec![[0.0f64; 3]; positions.len()];
+    for tri in triangles {
+        let [a, b, c] = tri.map(|v| positions[v as usize].map(f64::from));
+        // Twice the area times the unit normal: area weighting for free.
+        let n = cross(sub(b, a), sub(c, a));
+        for &v in tri {
+            let v = v as usize;
+            if !flags[v] {
+                sum[v] = add(sum[v], n);
+                any[v] = n;
+            }
+        }
+    }
+    for v in 0..normals.len() {
+        if flags[v] {
+            continue;
+        }
+        // Opposite triangles can cancel; fall back to one of them.
+        let n = if norm(sum[v]) > 0.0 { sum[v] } else { any[v] };
+        let len = norm(n);
+        normals[v] = if len > 0.0 {
+            n.map(|x| (x / len) as f32)
+        } else {
+            [0.0, 0.0, 1.0]
+        };
+    }
+    normals
+}
+
+/// Builds the scene materials for the used tobj material ids: `Kd`, `Ke`
+/// and the linear texture mean (textures decoded once each, in parallel).
+/// Returns the materials and the number of texture files that failed.
+fn resolve_materials(
+    all: &[(tobj::Material, PathBuf)],
+    used_ids: &[usize],
+    warnings: &mut Vec<String>,
+) -> Result<(Vec<Material>, u64), SceneError> {
+    // Resolve texture paths relative to their MTL file; decode each once.
+    let texture_of = |id: usize| -> Option<PathBuf> {
+        let (m, library) = &all[id];
+        let spec = m.diffuse_texture.as_deref()?;
+        let name = texture_file_name(spec);
+        if name.is_empty() {
+            return None;
+        }
+        Some(library.parent().unwrap_or_else(|| Path::new("")).join(name))
+    };
+    let mut unique: Vec<PathBuf> = used_ids.iter().filter_map(|&id| texture_of(id)).collect();
+    unique.sort();
+    unique.dedup();
+    let decoded: HashMap<PathBuf, Result<[f64; 3], String>> = unique
+        .into_par_iter()
+        .map(|p| {
+            let mean = texture_mean_linear(&p);
+            (p, mean)
+        })
+        .collect();
+    let mut failures: Vec<&PathBuf> = decoded
+        .iter()
+        .filter(|(_, r)| r.is_err())
+        .map(|(p, _)| p)
+        .collect();
+    failures.sort();
+    for p in &failures {
+        let users: Vec<String> = used_ids
+            .iter()
+            .filter(|&&id| texture_of(id).as_ref() == Some(*p))
+            .map(|&id| format!("`{}`", all[id].0.name))
+            .collect();
+        if let Some(Err(e)) = decoded.get(*p) {
+            warnings.push(format!(
+                "texture {} (map_Kd of material {}) could not be loaded ({e}); using Kd alone",
+                p.display(),
+                users.join(", ")
+            ));
+        }
+    }
+
+    let mut materials = Vec::with_capacity(used_ids.len() + 1);
+    for &id in used_ids {
+        let (m, library) = &all[id];
+        let texture = texture_of(id);
+        let mean = texture
+            .as_ref()
+            .and_then(|p| decoded.get(p))
+            .and_then(|r| r.as_ref().ok().copied());
+        let kd = match m.diffuse {
+            Some(kd) => kd,
+            None if texture.is_some() => [1.0; 3],
+            None => {
+                warnings.push(format!(
+                    "material `{}` in {} has neither Kd nor map_Kd; using the default albedo \
+                     {DEFAULT_ALBEDO}",
+                    m.name,
+                    library.display()
+                ));
+                [DEFAULT_ALBEDO; 3]
+            }
+        };
+        let emission = m.emissive.unwrap_or([0.0; 3]);
+        for (key, value) in [("Kd", kd), ("Ke", emission)] {
+            if value.iter().any(|c| !c.is_finite() || *c < 0.0) {
+                return Err(SceneError::Invalid {
+                    path: library.clone(),
+                    message: format!(
+                        "material `{}`: {key} {value:?} has a negative or non-finite component",
+                        m.name
+                    ),
+                });
+            }
+        }
+        let albedo = match mean {
+            Some(t) => [0, 1, 2].map(|k| (f64::from(kd[k]) * t[k]) as f32),
+            None => kd,
+        };
+        materials.push(Material {
+            name: m.name.clone(),
+            albedo,
+            emission,
+            kd,
+            diffuse_texture: texture.filter(|_| mean.is_some()),
+        });
+    }
+    Ok((materials, failures.len() as u64))
+}
+
+/// The file name in a `map_Kd` value: options such as `-bm 0.5` or
+/// `-s 1 1 1` precede it (then the last word is taken, so such names must
+/// not contain spaces), and Windows separators become `/`.
+fn texture_file_name(spec: &str) -> String {
+    let spec = spec.trim();
+    let name = if spec.starts_with('-') {
+        spec.split_whitespace().last().unwrap_or("")
+    } else {
+        spec
+    };
+    name.replace('\\', "/")
+}
+
+/// Decodes a texture and returns the mean of its RGB in linear space: each
+/// sample is converted from sRGB with the exact EOTF, then averaged. Alpha
+/// is ignored; grey images count as equal R, G and B.
+fn texture_mean_linear(path: &Path) -> Result<[f64; 3], String> {
+    let image = image::ImageReader::open(path)
+        .map_err(|e| e.to_string())?
+        .with_guessed_format()
+        .map_err(|e| e.to_string())?
+        .decode()
+        .map_err(|e| e.to_string())?;
+    let pixels = u64::from(image.width()) * u64::from(image.height());
+    if pixels == 0 {
+        return Err("the image has no pixels".to_owned());
+    }
+    use image::DynamicImage as D;
+    let mean = match &image {
+        D::ImageRgb8(b) => mean_u8(b.as_raw(), 3, 3),
+        D::ImageRgba8(b) => mean_u8(b.as_raw(), 4, 3),
+        D::ImageLuma8(b) => mean_u8(b.as_raw(), 1, 1),
+        D::ImageLumaA8(b) => mean_u8(b.as_raw(), 2, 1),
+        other => {
+            // 16-bit and float images: through 16-bit samples.
+            let rgb = other.to_rgb16();
+            let mut sum = [0.0f64; 3];
+            for px in rgb.as_raw().chunks_exact(3) {
+                for k in 0..3 {
+                    sum[k] += srgb_to_linear(f64::from(px[k]) / 65535.0);
+                }
+            }
+            sum.map(|s| s / pixels as f64)
+        }
+    };
+    Ok(mean)
+}
+
+/// Linear mean of 8-bit sRGB samples with `stride` bytes per pixel, of
+/// which the first `colour` (3, or 1 for grey) are used. A histogram per
+/// channel keeps the sum exact and the conversion to 256 evaluations.
+fn mean_u8(samples: &[u8], stride: usize, colour: usize) -> [f64; 3] {
+    let mut histogram = vec![[0u64; 256]; colour];
+    let mut pixels = 0u64;
+    for px in samples.chunks_exact(stride) {
+        for (k, h) in histogram.iter_mut().enumerate() {
+            h[px[k] as usize] += 1;
+        }
+        pixels += 1;
+    }
+    let lut: Vec<f64> = (0..256).map(|v| srgb_to_linear(v as f64 / 255.0)).collect();
+    let means: Vec<f64> = histogram
+        .iter()
+        .map(|h| {
+            let sum: f64 = h.iter().zip(&lut).map(|(&n, &l)| n as f64 * l).sum();
+            sum / pixels.max(1) as f64
+        })
+        .collect();
+    if colour == 1 {
+        [means[0]; 3]
+    } else {
+        [means[0], means[1], means[2]]
+    }
+}
+
+// Small f64 vector helpers.
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_eotf_matches_the_standard_at_key_points() {
+        assert_eq!(srgb_to_linear(0.0), 0.0);
+        assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-15);
+        assert!((srgb_to_linear(0.04045) - 0.04045 / 12.92).abs() < 1e-15);
+        // 0.5 encoded is about 0.214 linear.
+        assert!((srgb_to_linear(0.5) - 0.214_041_140_482_232_5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn texture_names_drop_options_and_windows_separators() {
+        assert_eq!(texture_file_name("wall.png"), "wall.png");
+        assert_eq!(texture_file_name("  my wall.png "), "my wall.png");
+        assert_eq!(
+            texture_file_name("-bm 0.5 -s 1 1 1 tex\\wall.png"),
+            "tex/wall.png"
+        );
+    }
+
+    #[test]
+    fn early_index_check_rejects_only_certain_errors() {
+        assert!(
+            check_index_early("3", 0, 2).is_ok(),
+            "forward references are tobj's call"
+        );
+        assert!(check_index_early("-2", 0, 2).is_ok());
+        assert!(check_index_early("-3", 1, 2).is_err());
+        assert!(check_index_early("0", 2, 2).is_err());
+        assert!(check_index_early("9223372036854775807", 1, 2).is_err());
+        assert!(
+            check_index_early("abc", 0, 2).is_ok(),
+            "tobj reports its own parse errors"
+        );
+    }
+
+    #[test]
+    fn mtl_hook_expands_single_values_and_rejects_bad_ones() {
+        let mut current = String::from("m");
+        let mut buf = b"Kd 0.5\n".to_vec();
+        mtl_line_hook(&mut current, &mut buf).unwrap();
+        assert_eq!(buf, b"Kd 0.5 0.5 0.5\n");
+        let mut buf = b"Kd 0.5 0.5\n".to_vec();
+        assert!(mtl_line_hook(&mut current, &mut buf).is_err());
+        let mut buf = b"Ke -1 0 0\n".to_vec();
+        assert!(mtl_line_hook(&mut current, &mut buf)
+            .unwrap_err()
+            .contains("`m`"));
+        let mut buf = b"Ks -1 0 0\n".to_vec();
+        assert!(
+            mtl_line_hook(&mut current, &mut buf).is_ok(),
+            "Ks is not used"
+        );
+    }
+
+    #[test]
+    fn line_tap_counts_lines_and_repairs_utf8() {
+        let data: &[u8] = b"a\nb\xff\nc";
+        let mut seen = Vec::new();
+        let mut tap = LineTap::new(data, |n, buf: &mut Vec<u8>| {
+            seen.push((n, String::from_utf8(buf.clone()).unwrap()));
+            Ok(())
+        });
+        let lines: Vec<String> = (&mut tap).lines().map(|l| l.unwrap()).collect();
+        assert_eq!(lines, ["a", "b\u{fffd}", "c"]);
+        let outcome = tap.finish();
+        assert_eq!(outcome.line, 3);
+        assert_eq!(outcome.lossy_lines, 1);
+        assert_eq!(outcome.first_lossy_line, 2);
+        assert_eq!(seen.len(), 3);
+    }
+}
