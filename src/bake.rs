@@ -38,7 +38,9 @@ impl BakeConfig {
             Resolution::VoxelSize(s) if !(s.is_finite() && s > 0.0) => Err(BakeError::Options(
                 format!("--voxel-size must be a positive finite number, got {s}"),
             )),
-            Resolution::Patches(0) => Err(BakeError::Options("--patches must be at least 1".into())),
+            Resolution::Patches(0) => {
+                Err(BakeError::Options("--patches must be at least 1".into()))
+            }
             _ => Ok(()),
         }
     }
@@ -88,7 +90,12 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         None => Backend::Cpu,
     };
     let device = match &gpu {
-        Some(g) => format!("{} ({}, {})", g.info().name, g.info().kind, g.info().platform),
+        Some(g) => format!(
+            "{} ({}, {})",
+            g.info().name,
+            g.info().kind,
+            g.info().platform
+        ),
         None => "CPU reference (f64)".to_string(),
     };
     progress(&format!("voxelizing on {device}"));
@@ -128,7 +135,8 @@ pub const PATCHES_CSV_HEADER: &str =
 pub fn export_patches(dir: &Path, patches: &[Patch]) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let path = dir.join("patches.csv");
-    let file = std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+    let file =
+        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
     let mut w = std::io::BufWriter::new(file);
     let io = |e| anyhow::Error::from(e).context(format!("writing {}", path.display()));
     writeln!(w, "{PATCHES_CSV_HEADER}").map_err(io)?;

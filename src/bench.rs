@@ -71,7 +71,9 @@ pub fn voxelize(
         let (cl, t_cl) = best_of(repeat, || {
             Ok(voxelize::voxelize_at(&scene, size, &Backend::OpenCl(&gpu))?)
         })?;
-        let (cpu, t_cpu) = best_of(repeat, || Ok(voxelize::voxelize_at(&scene, size, &Backend::Cpu)?))?;
+        let (cpu, t_cpu) = best_of(repeat, || {
+            Ok(voxelize::voxelize_at(&scene, size, &Backend::Cpu)?)
+        })?;
         let cmp = voxelize::compare(&cl, &cpu);
         let piece_bytes = cl.stats.candidate_pieces as f64 * 32.0;
         writeln!(

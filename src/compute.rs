@@ -11,8 +11,7 @@ use crate::error::ClError;
 use opencl3::command_queue::{CommandQueue, CL_QUEUE_PROFILING_ENABLE};
 use opencl3::context::Context;
 use opencl3::device::{
-    Device, CL_DEVICE_TYPE_ACCELERATOR, CL_DEVICE_TYPE_ALL, CL_DEVICE_TYPE_CPU,
-    CL_DEVICE_TYPE_GPU,
+    Device, CL_DEVICE_TYPE_ACCELERATOR, CL_DEVICE_TYPE_ALL, CL_DEVICE_TYPE_CPU, CL_DEVICE_TYPE_GPU,
 };
 use opencl3::event::Event;
 use opencl3::kernel::Kernel;
@@ -62,8 +61,8 @@ fn discovered() -> Result<&'static Discovered, ClError> {
 }
 
 fn discover() -> Result<Discovered, String> {
-    let platforms = opencl3::platform::get_platforms()
-        .map_err(|e| format!("clGetPlatformIDs failed: {e}"))?;
+    let platforms =
+        opencl3::platform::get_platforms().map_err(|e| format!("clGetPlatformIDs failed: {e}"))?;
     if platforms.is_empty() {
         return Err("the OpenCL loader found no platform".into());
     }
@@ -154,12 +153,15 @@ impl DeviceSelection {
         }
         match env.map(str::trim) {
             None | Some("") => Ok(Self::Default),
-            Some(value) => value.parse::<usize>().map(Self::Index).map_err(|_| {
-                ClError::BadSelection {
-                    value: value.to_string(),
-                    origin: format!("environment variable {DEVICE_ENV}"),
-                }
-            }),
+            Some(value) => {
+                value
+                    .parse::<usize>()
+                    .map(Self::Index)
+                    .map_err(|_| ClError::BadSelection {
+                        value: value.to_string(),
+                        origin: format!("environment variable {DEVICE_ENV}"),
+                    })
+            }
         }
     }
 }

@@ -35,7 +35,9 @@ pub enum ClError {
     NoPlatform(String),
     #[error("OpenCL device index {index} does not exist: {available} device(s) available (see `radiosity devices`)")]
     NoSuchDevice { index: usize, available: usize },
-    #[error("invalid OpenCL device selection {value:?} in {origin}: expected a device index such as 0")]
+    #[error(
+        "invalid OpenCL device selection {value:?} in {origin}: expected a device index such as 0"
+    )]
     BadSelection { value: String, origin: String },
     #[error("OpenCL program {name} failed to build on {device}:\n{log}")]
     Build {

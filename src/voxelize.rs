@@ -102,7 +102,7 @@ impl Direction {
 
     /// +1 or −1.
     pub fn sign(self) -> i64 {
-        if self as usize % 2 == 0 {
+        if (self as usize).is_multiple_of(2) {
             1
         } else {
             -1
@@ -571,10 +571,16 @@ const PIECE_BATCH_BYTES: u64 = 256 << 20;
 /// The pieces on an OpenCL device: count, prefix sum on the host, emit in
 /// batches that fit the device's allocation limit. Returns the pieces and
 /// the summed kernel time.
-pub fn cl_pieces(gpu: &Gpu, coords: &[[f64; 9]], grid: &Grid) -> Result<(Vec<Piece>, f64), BakeError> {
+pub fn cl_pieces(
+    gpu: &Gpu,
+    coords: &[[f64; 9]],
+    grid: &Grid,
+) -> Result<(Vec<Piece>, f64), BakeError> {
     let n = coords.len();
     if n > u32::MAX as usize {
-        return Err(BakeError::Options(format!("{n} triangles exceed the 2^32 limit")));
+        return Err(BakeError::Options(format!(
+            "{n} triangles exceed the 2^32 limit"
+        )));
     }
     let flat: Vec<f32> = coords.iter().flat_map(|c| c.map(|x| x as f32)).collect();
     let program = gpu.build("voxelize.cl", KERNEL_SOURCE, "")?;
@@ -700,7 +706,12 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
             });
         }
         if p.area > MIN_PIECE_AREA {
-            kept.push((grid.key(p.voxel), Direction::dominant(normals[p.tri as usize]), p.tri, i));
+            kept.push((
+                grid.key(p.voxel),
+                Direction::dominant(normals[p.tri as usize]),
+                p.tri,
+                i,
+            ));
         } else if p.area > 0.0 {
             stats.sliver_pieces += 1;
             stats.sliver_area += p.area * s2;
@@ -717,8 +728,9 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         let material = &scene.materials[scene.triangle_material[tri as usize] as usize];
         let n = normals[tri as usize];
         let a = p.area * s2;
-        let world: [f64; 3] =
-            std::array::from_fn(|q| grid.origin[q] + grid.size * (p.voxel[q] as f64 + p.centroid[q]));
+        let world: [f64; 3] = std::array::from_fn(|q| {
+            grid.origin[q] + grid.size * (p.voxel[q] as f64 + p.centroid[q])
+        });
         let mut acc = Acc {
             area: a,
             ..Default::default()
@@ -767,7 +779,11 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         if target != (*key, *dir) {
             stats.merged_groups += 1;
         }
-        targets.entry(target).or_insert((at, Acc::default())).1.add(acc);
+        targets
+            .entry(target)
+            .or_insert((at, Acc::default()))
+            .1
+            .add(acc);
     }
 
     let mut patches = Vec::with_capacity(targets.len());
@@ -899,8 +915,11 @@ impl PieceComparison {
 
 /// Compares two piece lists keyed by (triangle, voxel).
 pub fn compare_pieces(a: &[Piece], b: &[Piece]) -> PieceComparison {
-    let index: HashMap<(u32, [u32; 3]), usize> =
-        b.iter().enumerate().map(|(i, p)| ((p.tri, p.voxel), i)).collect();
+    let index: HashMap<(u32, [u32; 3]), usize> = b
+        .iter()
+        .enumerate()
+        .map(|(i, p)| ((p.tri, p.voxel), i))
+        .collect();
     let mut c = PieceComparison {
         pieces_a: a.len(),
         pieces_b: b.len(),

@@ -43,7 +43,7 @@ fn lists_devices_and_runs_a_kernel() {
                 .enqueue_nd_range(gpu.queue())
         })
         .unwrap();
-    assert!(seconds >= 0.0 && seconds < 10.0, "profiling time {seconds}");
+    assert!((0.0..10.0).contains(&seconds), "profiling time {seconds}");
     let out = gpu.download("y", &yb, n).unwrap();
     // 2 i + (1 − i) = i + 1 is exact in f32 for i < 2^24.
     for (i, v) in out.iter().enumerate() {
@@ -55,21 +55,35 @@ fn lists_devices_and_runs_a_kernel() {
 fn build_failure_returns_the_compiler_log() {
     let gpu = common::gpu();
     let err = gpu
-        .build("broken.cl", "kernel void k(global float* x) { x[0] = undefined_name; }", "")
+        .build(
+            "broken.cl",
+            "kernel void k(global float* x) { x[0] = undefined_name; }",
+            "",
+        )
         .unwrap_err();
     let msg = err.to_string();
     assert!(matches!(err, ClError::Build { .. }));
-    assert!(msg.contains("broken.cl") && msg.contains("undefined_name"), "{msg}");
+    assert!(
+        msg.contains("broken.cl") && msg.contains("undefined_name"),
+        "{msg}"
+    );
 }
 
 #[test]
 fn oversized_buffers_are_refused_with_the_limit() {
     let gpu = common::gpu();
     let too_many = (gpu.info().max_mem_alloc_bytes / 4 + 1) as usize;
-    let err = gpu.buffer::<f32>("huge", too_many, Access::ReadOnly).unwrap_err();
+    let err = gpu
+        .buffer::<f32>("huge", too_many, Access::ReadOnly)
+        .unwrap_err();
     let msg = err.to_string();
-    assert!(msg.contains("huge") && msg.contains("CL_DEVICE_MAX_MEM_ALLOC_SIZE"), "{msg}");
-    let err = gpu.check_total("a stage", gpu.info().global_mem_bytes + 1).unwrap_err();
+    assert!(
+        msg.contains("huge") && msg.contains("CL_DEVICE_MAX_MEM_ALLOC_SIZE"),
+        "{msg}"
+    );
+    let err = gpu
+        .check_total("a stage", gpu.info().global_mem_bytes + 1)
+        .unwrap_err();
     assert!(err.to_string().contains("CL_DEVICE_GLOBAL_MEM_SIZE"));
 }
 
@@ -77,12 +91,29 @@ fn oversized_buffers_are_refused_with_the_limit() {
 fn device_selection_by_index_and_environment() {
     let n = compute::devices().unwrap().len();
     assert!(Gpu::new(DeviceSelection::Index(0)).is_ok());
-    let err = Gpu::new(DeviceSelection::Index(n)).err().expect("index past the end");
+    let err = Gpu::new(DeviceSelection::Index(n))
+        .err()
+        .expect("index past the end");
     assert!(err.to_string().contains(&format!("index {n}")), "{err}");
-    assert_eq!(DeviceSelection::from_flag_or_env(Some(3)).unwrap(), DeviceSelection::Index(3));
-    assert_eq!(DeviceSelection::from_flag_or_value(None, Some("0")).unwrap(), DeviceSelection::Index(0));
-    assert_eq!(DeviceSelection::from_flag_or_value(None, Some(" ")).unwrap(), DeviceSelection::Default);
-    assert_eq!(DeviceSelection::from_flag_or_value(Some(1), Some("0")).unwrap(), DeviceSelection::Index(1));
+    assert_eq!(
+        DeviceSelection::from_flag_or_env(Some(3)).unwrap(),
+        DeviceSelection::Index(3)
+    );
+    assert_eq!(
+        DeviceSelection::from_flag_or_value(None, Some("0")).unwrap(),
+        DeviceSelection::Index(0)
+    );
+    assert_eq!(
+        DeviceSelection::from_flag_or_value(None, Some(" ")).unwrap(),
+        DeviceSelection::Default
+    );
+    assert_eq!(
+        DeviceSelection::from_flag_or_value(Some(1), Some("0")).unwrap(),
+        DeviceSelection::Index(1)
+    );
     let err = DeviceSelection::from_flag_or_value(None, Some("gpu")).unwrap_err();
-    assert!(err.to_string().contains("RADIOSITY_CL_DEVICE") && err.to_string().contains("gpu"), "{err}");
+    assert!(
+        err.to_string().contains("RADIOSITY_CL_DEVICE") && err.to_string().contains("gpu"),
+        "{err}"
+    );
 }

@@ -43,7 +43,11 @@ fn area_tol(grid: &Grid) -> f64 {
 /// are grazing contacts (area within rounding of zero), the boundary cases
 /// are rare, and every patch differing between the paths is explained by
 /// one of them.
-fn check_cl_against_cpu(path: &std::path::Path, size: f64, max_boundary_fraction: f64) -> (Voxelization, Voxelization) {
+fn check_cl_against_cpu(
+    path: &std::path::Path,
+    size: f64,
+    max_boundary_fraction: f64,
+) -> (Voxelization, Voxelization) {
     let scene = scene::load(path).unwrap();
     let g = gpu();
     let grid = Grid::new(scene.bounds(), size).unwrap();
@@ -52,12 +56,28 @@ fn check_cl_against_cpu(path: &std::path::Path, size: f64, max_boundary_fraction
     let cpu = cpu_pieces(&coords, &grid);
     let pc = compare_pieces(&cl, &cpu);
     let tol = area_tol(&grid);
-    println!("{}: size {size}, grid {:?}, pieces {pc:?}, area tol {tol:e}", path.display(), grid.dims);
-    assert!(pc.max_area_diff <= tol, "piece areas differ by {} > {tol}", pc.max_area_diff);
-    assert!(pc.max_unmatched_area <= tol, "a piece of area {} was found by one path only", pc.max_unmatched_area);
+    println!(
+        "{}: size {size}, grid {:?}, pieces {pc:?}, area tol {tol:e}",
+        path.display(),
+        grid.dims
+    );
+    assert!(
+        pc.max_area_diff <= tol,
+        "piece areas differ by {} > {tol}",
+        pc.max_area_diff
+    );
+    assert!(
+        pc.max_unmatched_area <= tol,
+        "a piece of area {} was found by one path only",
+        pc.max_unmatched_area
+    );
     // A centroid is a ratio of moments over the area; for pieces above 1e-3
     // faces its rounding error stays below tol / 1e-3 voxel edges.
-    assert!(pc.max_centroid_diff <= tol / 1e-3, "centroids differ by {}", pc.max_centroid_diff);
+    assert!(
+        pc.max_centroid_diff <= tol / 1e-3,
+        "centroids differ by {}",
+        pc.max_centroid_diff
+    );
     let boundary = pc.boundary_cases() as f64 / pc.common.max(1) as f64;
     assert!(
         boundary <= max_boundary_fraction,
@@ -81,7 +101,11 @@ fn check_cl_against_cpu(path: &std::path::Path, size: f64, max_boundary_fraction
     // Albedos are weighted means of material albedos (< 1) whose weights
     // carry the relative piece-area error; 1e-4 covers pieces as small as
     // tol / 1e-4 of a face.
-    assert!(c.max_albedo_diff <= 1e-4, "albedo differs by {}", c.max_albedo_diff);
+    assert!(
+        c.max_albedo_diff <= 1e-4,
+        "albedo differs by {}",
+        c.max_albedo_diff
+    );
     (vcl, vcpu)
 }
 
@@ -90,13 +114,17 @@ fn cornell_box_opencl_matches_cpu_reference() {
     // 20 mm voxels: a 30×30×30 grid, about 4,400 patches.
     let (cl, cpu) = check_cl_against_cpu(&common::bundled("cornell_box"), 20.0, 0.0);
     let c = compare(&cl, &cpu);
-    assert_eq!((c.only_in_a, c.only_in_b), (0, 0), "the Cornell box has no boundary cases");
+    assert_eq!(
+        (c.only_in_a, c.only_in_b),
+        (0, 0),
+        "the Cornell box has no boundary cases"
+    );
     assert!(cl.patches.len() > 1000, "{} patches", cl.patches.len());
 }
 
 #[test]
 fn sponza_opencl_matches_cpu_reference() {
-    // 0.25 m voxels: a 142×69×66 grid and about 117,000 patches. Boundary
+    // 0.25 m voxels: a 142×69×66 grid and about 130,000 patches. Boundary
     // cases must stay below 0.1 % of the pieces.
     let (cl, _) = check_cl_against_cpu(&common::sponza(), 0.25, 1e-3);
     assert!(cl.patches.len() > 10_000);
@@ -112,8 +140,11 @@ fn opencl_voxelization_is_deterministic() {
 }
 
 /// Patches whose voxel lies within the plate's footprint, by plate.
-fn plate_patches<'a>(v: &'a Voxelization, normal: [f64; 3]) -> Vec<&'a voxelize::Patch> {
-    v.patches.iter().filter(|p| dot(p.normal, normal) > 0.999).collect()
+fn plate_patches(v: &Voxelization, normal: [f64; 3]) -> Vec<&voxelize::Patch> {
+    v.patches
+        .iter()
+        .filter(|p| dot(p.normal, normal) > 0.999)
+        .collect()
 }
 
 /// Two parallel plates at an angle to the grid, facing each other at
@@ -121,7 +152,11 @@ fn plate_patches<'a>(v: &'a Voxelization, normal: [f64; 3]) -> Vec<&'a voxelize:
 /// so the distance between the plates is kept (DESIGN.md step 2).
 fn check_tilted_plates(n: [f64; 3], backend: &Backend, tol: f64) {
     let n = norm(n);
-    let helper = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 0.0, 1.0] };
+    let helper = if n[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 0.0, 1.0]
+    };
     let u = norm(cross(helper, n));
     let v = cross(n, u);
     let c0 = [0.03, 0.02, 0.01];
@@ -144,7 +179,10 @@ fn check_tilted_plates(n: [f64; 3], backend: &Backend, tol: f64) {
     for (normal, centre) in [(n, c0), (neg, c1)] {
         let ps = plate_patches(&vox, normal);
         let area: f64 = ps.iter().map(|p| p.area).sum();
-        assert!((area - 1.0).abs() <= tol, "plate area {area}, expected 1 (normal {normal:?})");
+        assert!(
+            (area - 1.0).abs() <= tol,
+            "plate area {area}, expected 1 (normal {normal:?})"
+        );
         for p in &ps {
             let off = dot(p.centre, normal) - dot(centre, normal);
             assert!(off.abs() <= tol, "patch centre {off} off its plate's plane");
@@ -157,8 +195,12 @@ fn check_tilted_plates(n: [f64; 3], backend: &Backend, tol: f64) {
     // The distance between the plates' patch planes.
     let h0: f64 = ps0.iter().map(|p| p.area * dot(p.centre, n)).sum::<f64>();
     let h1: f64 = ps1.iter().map(|p| p.area * dot(p.centre, n)).sum::<f64>();
-    let dist = h1 / ps1.iter().map(|p| p.area).sum::<f64>() - h0 / ps0.iter().map(|p| p.area).sum::<f64>();
-    assert!((dist - d).abs() <= tol, "plate distance {dist}, expected {d}");
+    let dist =
+        h1 / ps1.iter().map(|p| p.area).sum::<f64>() - h0 / ps0.iter().map(|p| p.area).sum::<f64>();
+    assert!(
+        (dist - d).abs() <= tol,
+        "plate distance {dist}, expected {d}"
+    );
     assert_eq!(vox.stats.covered_groups, 0);
 }
 
@@ -187,19 +229,44 @@ fn plane_on_a_voxel_boundary_is_counted_once() {
     // ceiling at y = 1.5 faces down into the voxel below. (They are more
     // than two voxels apart: surfaces facing each other from adjacent voxels
     // hide each other under the neighbour rule, a documented limit.)
-    let up = quad([0.5, 0.5, 0.5], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], 0.4, 0.4, [0.5; 3]);
-    let down = quad([0.5, 1.5, 0.5], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], 0.4, 0.4, [0.5; 3]);
+    let up = quad(
+        [0.5, 0.5, 0.5],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 0.0],
+        0.4,
+        0.4,
+        [0.5; 3],
+    );
+    let down = quad(
+        [0.5, 1.5, 0.5],
+        [1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        0.4,
+        0.4,
+        [0.5; 3],
+    );
     let path = write_quads("boundary", &[up, down]);
     let scene = scene::load(&path).unwrap();
     let g = gpu();
     for backend in [Backend::Cpu, Backend::OpenCl(&g)] {
         let v = voxelize_at(&scene, 0.25, &backend).unwrap();
-        let floor: Vec<_> = v.patches.iter().filter(|p| p.direction == Direction::PosY).collect();
-        let ceil: Vec<_> = v.patches.iter().filter(|p| p.direction == Direction::NegY).collect();
+        let floor: Vec<_> = v
+            .patches
+            .iter()
+            .filter(|p| p.direction == Direction::PosY)
+            .collect();
+        let ceil: Vec<_> = v
+            .patches
+            .iter()
+            .filter(|p| p.direction == Direction::NegY)
+            .collect();
         assert_eq!(floor.len() + ceil.len(), v.patches.len());
         let a_floor: f64 = floor.iter().map(|p| p.area).sum();
         let a_ceil: f64 = ceil.iter().map(|p| p.area).sum();
-        assert!((a_floor - 0.64).abs() < 1e-6, "floor area {a_floor} (0.64 expected once)");
+        assert!(
+            (a_floor - 0.64).abs() < 1e-6,
+            "floor area {a_floor} (0.64 expected once)"
+        );
         assert!((a_ceil - 0.64).abs() < 1e-6, "ceiling area {a_ceil}");
         for p in &floor {
             let y0 = v.grid.origin[1] + v.grid.size * p.voxel[1] as f64;
@@ -217,21 +284,42 @@ fn plane_on_a_voxel_boundary_is_counted_once() {
 #[test]
 fn one_voxel_thin_wall_has_patches_on_both_sides() {
     // A wall 0.05 thick inside one voxel layer (x in [0.55, 0.6] ⊂ [0.5, 0.75]).
-    let plus = quad([0.6, 0.5, 0.5], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], 0.4, 0.4, [0.2, 0.4, 0.6]);
-    let minus = quad([0.55, 0.5, 0.5], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0], 0.4, 0.4, [0.6, 0.4, 0.2]);
+    let plus = quad(
+        [0.6, 0.5, 0.5],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        0.4,
+        0.4,
+        [0.2, 0.4, 0.6],
+    );
+    let minus = quad(
+        [0.55, 0.5, 0.5],
+        [0.0, 0.0, 1.0],
+        [0.0, 1.0, 0.0],
+        0.4,
+        0.4,
+        [0.6, 0.4, 0.2],
+    );
     let path = write_quads("thinwall", &[plus, minus]);
     let scene = scene::load(&path).unwrap();
     let g = gpu();
     for backend in [Backend::Cpu, Backend::OpenCl(&g)] {
         let v = voxelize_at(&scene, 0.25, &backend).unwrap();
-        for (dir, albedo, x) in [(Direction::PosX, [0.2, 0.4, 0.6], 0.6), (Direction::NegX, [0.6, 0.4, 0.2], 0.55)] {
+        for (dir, albedo, x) in [
+            (Direction::PosX, [0.2, 0.4, 0.6], 0.6),
+            (Direction::NegX, [0.6, 0.4, 0.2], 0.55),
+        ] {
             let side: Vec<_> = v.patches.iter().filter(|p| p.direction == dir).collect();
             let area: f64 = side.iter().map(|p| p.area).sum();
-            assert!((area - 0.64).abs() < 1e-5, "{} side area {area}", dir.name());
+            assert!(
+                (area - 0.64).abs() < 1e-5,
+                "{} side area {area}",
+                dir.name()
+            );
             for p in &side {
                 assert!((p.centre[0] - x).abs() < 1e-6);
-                for c in 0..3 {
-                    assert!((p.albedo[c] - albedo[c]).abs() < 1e-6);
+                for (a, b) in p.albedo.iter().zip(albedo) {
+                    assert!((a - b).abs() < 1e-6);
                 }
             }
         }
@@ -282,24 +370,45 @@ fn fine_grids_use_memory_proportional_to_occupied_voxels() {
     // Two small triangles at opposite corners of a 1000-unit box at voxel
     // size 0.25: a ~4000³ grid (6.4e10 voxels; a dense byte grid would take
     // 64 GB). Sparse storage makes this instant.
-    let a = quad([0.125, 0.125, 0.125], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.1, 0.1, [0.5; 3]);
-    let b = quad([999.125, 999.125, 999.125], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.1, 0.1, [0.5; 3]);
+    let a = quad(
+        [0.125, 0.125, 0.125],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        0.1,
+        0.1,
+        [0.5; 3],
+    );
+    let b = quad(
+        [999.125, 999.125, 999.125],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        0.1,
+        0.1,
+        [0.5; 3],
+    );
     let scene = scene::load(&write_quads("sparse", &[a, b])).unwrap();
     let v = voxelize_at(&scene, 0.25, &Backend::OpenCl(&gpu())).unwrap();
     assert!(v.grid.dims.iter().all(|&d| d >= 3999), "{:?}", v.grid.dims);
     assert_eq!(v.stats.occupied_voxels, 2);
     assert_eq!(v.patches.len(), 2);
     // Beyond MAX_DIM voxels per axis the request is refused with a reason.
-    let err = voxelize_at(&scene, 0.1, &Backend::Cpu).unwrap_err().to_string();
+    let err = voxelize_at(&scene, 0.1, &Backend::Cpu)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("too small"), "{err}");
 }
 
 #[test]
 fn patch_count_search_reaches_the_target() {
     let scene = scene::load(&common::bundled("cornell_box")).unwrap();
-    let v = voxelize::voxelize(&scene, Resolution::Patches(1500), &Backend::OpenCl(&gpu())).unwrap();
+    let v =
+        voxelize::voxelize(&scene, Resolution::Patches(1500), &Backend::OpenCl(&gpu())).unwrap();
     let n = v.patches.len() as f64;
-    assert!((n / 1500.0 - 1.0).abs() < 0.1, "{n} patches for a target of 1500 ({:?})", v.stats.search);
+    assert!(
+        (n / 1500.0 - 1.0).abs() < 0.1,
+        "{n} patches for a target of 1500 ({:?})",
+        v.stats.search
+    );
 }
 
 #[test]
@@ -313,8 +422,15 @@ fn cornell_box_patches_are_physical() {
         .fold(0.0f32, f32::max) as f64;
     for p in &v.patches {
         assert!((dot(p.normal, p.normal) - 1.0).abs() < 1e-12);
-        assert!(p.area > 0.0 && p.area <= 3.0 * 400.0, "area {} above 3 voxel faces", p.area);
-        assert!(p.albedo.iter().all(|&a| (0.0..=albedo_max + 1e-12).contains(&a)));
+        assert!(
+            p.area > 0.0 && p.area <= 3.0 * 400.0,
+            "area {} above 3 voxel faces",
+            p.area
+        );
+        assert!(p
+            .albedo
+            .iter()
+            .all(|&a| (0.0..=albedo_max + 1e-12).contains(&a)));
     }
     // The Cornell blocks have no bottom faces, and every surface meets
     // others only at corners, which the neighbour rule keeps: all area is
@@ -324,12 +440,18 @@ fn cornell_box_patches_are_physical() {
     // f32 vertex positions by different arithmetic (relative f32 epsilon).
     let kept = v.stats.patch_area / v.stats.scene_area;
     let with_slivers = (v.stats.patch_area + v.stats.sliver_area) / v.stats.scene_area;
-    assert!((with_slivers - 1.0).abs() < f32::EPSILON as f64, "kept {kept} of the area, {with_slivers} with slivers");
+    assert!(
+        (with_slivers - 1.0).abs() < f32::EPSILON as f64,
+        "kept {kept} of the area, {with_slivers} with slivers"
+    );
     assert!(kept > 1.0 - 1e-6, "kept {kept}");
     assert_eq!(v.stats.covered_groups, 0);
     // Emitted power is conserved: Σ E_p A_p over patches equals Ke × the
     // light quad's area (130 mm × 105 mm), up to f64 rounding.
     let power: f64 = v.patches.iter().map(|p| p.emission[0] * p.area).sum();
     let expected = 17.0 * 130.0 * 105.0;
-    assert!((power - expected).abs() / expected < 1e-9, "emitted power {power}, expected {expected}");
+    assert!(
+        (power - expected).abs() / expected < 1e-9,
+        "emitted power {power}, expected {expected}"
+    );
 }

@@ -38,9 +38,19 @@ pub fn write_quads(tag: &str, quads: &[Quad]) -> PathBuf {
     let mut obj = String::from("mtllib scene.mtl\n");
     let mut mtl = String::new();
     for (i, q) in quads.iter().enumerate() {
-        writeln!(mtl, "newmtl m{i}\nKd {} {} {}\n", q.albedo[0], q.albedo[1], q.albedo[2]).unwrap();
+        writeln!(
+            mtl,
+            "newmtl m{i}\nKd {} {} {}\n",
+            q.albedo[0], q.albedo[1], q.albedo[2]
+        )
+        .unwrap();
         for c in &q.corners {
-            writeln!(obj, "v {:?} {:?} {:?}", c[0] as f32, c[1] as f32, c[2] as f32).unwrap();
+            writeln!(
+                obj,
+                "v {:?} {:?} {:?}",
+                c[0] as f32, c[1] as f32, c[2] as f32
+            )
+            .unwrap();
         }
         let b = 4 * i + 1;
         writeln!(obj, "usemtl m{i}\nf {} {} {} {}", b, b + 1, b + 2, b + 3).unwrap();

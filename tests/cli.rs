@@ -1,0 +1,167 @@
+//! The command line as a user meets it: exit codes, `--json` outputs,
+//! `-o`/`--export` files, and errors that name what is wrong.
+
+mod common;
+
+use std::process::{Command, Output};
+
+fn radiosity(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_radiosity"))
+        .args(args)
+        .env_remove("RADIOSITY_CL_DEVICE")
+        .output()
+        .expect("running the radiosity binary")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn help_and_version() {
+    let o = radiosity(&["--help"]);
+    assert!(o.status.success());
+    for sub in ["devices", "info", "bake", "generate", "bench"] {
+        assert!(stdout(&o).contains(sub), "--help lists {sub}");
+    }
+    assert!(radiosity(&["--version"]).status.success());
+    let o = radiosity(&["no-such-command"]);
+    assert_eq!(o.status.code(), Some(2), "usage errors exit with 2 (clap)");
+}
+
+#[test]
+fn devices_lists_the_opencl_device() {
+    let o = radiosity(&["devices", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let list = v.as_array().unwrap();
+    assert!(!list.is_empty());
+    assert!(list[0]["max_mem_alloc_bytes"].as_u64().unwrap() > 0);
+    let o = radiosity(&["devices"]);
+    assert!(stdout(&o).contains("[0]"));
+}
+
+#[test]
+fn info_json_has_the_documented_keys() {
+    let path = common::bundled("cornell_box");
+    let o = radiosity(&["info", path.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    for key in [
+        "triangles",
+        "materials",
+        "bounds",
+        "area",
+        "emissive_area",
+        "repairs",
+    ] {
+        assert!(v.get(key).is_some(), "key {key} missing in {v}");
+    }
+    assert_eq!(v["triangles"], 1834);
+    // The light quad: 130 mm × 105 mm.
+    assert!((v["emissive_area"].as_f64().unwrap() - 13650.0).abs() < 1e-6);
+    let o = radiosity(&["info", common::sponza().to_str().unwrap()]);
+    assert!(o.status.success());
+    assert!(stdout(&o).contains("66445"), "{}", stdout(&o));
+}
+
+#[test]
+fn missing_scene_is_a_clear_error() {
+    let o = radiosity(&["info", "/nonexistent/scene.obj"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("/nonexistent/scene.obj"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn bake_reports_counts_and_exports_patches() {
+    let dir = common::temp_dir("cli-bake");
+    let path = common::bundled("cornell_box");
+    let o = radiosity(&[
+        "bake",
+        path.to_str().unwrap(),
+        "--voxel-size",
+        "50",
+        "--export",
+        dir.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let patches = v["voxels"]["patches"].as_u64().unwrap();
+    assert!(patches > 100);
+    let stages: Vec<&str> = v["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["stage"].as_str().unwrap())
+        .collect();
+    assert_eq!(stages, ["load", "voxelize", "export"]);
+    let csv = std::fs::read_to_string(dir.join("patches.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next().unwrap(), radiosity::bake::PATCHES_CSV_HEADER);
+    assert_eq!(lines.count() as u64, patches);
+    // Progress goes to stderr, one line per stage.
+    assert!(stderr(&o).contains("[bake] voxelizing"));
+}
+
+#[test]
+fn bake_sponza_with_a_patch_target() {
+    let o = radiosity(&[
+        "bake",
+        common::sponza().to_str().unwrap(),
+        "--patches",
+        "2000",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let n = v["voxels"]["patches"].as_f64().unwrap();
+    assert!((n / 2000.0 - 1.0).abs() < 0.1, "{n} patches");
+}
+
+#[test]
+fn bad_options_and_devices_are_refused() {
+    let path = common::bundled("cornell_box");
+    let p = path.to_str().unwrap();
+    let o = radiosity(&["bake", p, "--voxel-size=-1"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("--voxel-size"), "{}", stderr(&o));
+    let o = radiosity(&["bake", p, "--patches", "0"]);
+    assert_eq!(o.status.code(), Some(1));
+    let o = radiosity(&["bake", p, "--device", "99"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("index 99"), "{}", stderr(&o));
+    let o = Command::new(env!("CARGO_BIN_EXE_radiosity"))
+        .args(["bake", p])
+        .env("RADIOSITY_CL_DEVICE", "first")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("RADIOSITY_CL_DEVICE"), "{}", stderr(&o));
+}
+
+#[test]
+fn generate_writes_the_committed_scene() {
+    let dir = common::temp_dir("cli-gen");
+    let o = radiosity(&["generate", "cornell_box", "-o", dir.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for ext in ["obj", "mtl", "json"] {
+        let a = std::fs::read(dir.join(format!("cornell_box.{ext}"))).unwrap();
+        let b = std::fs::read(common::bundled("cornell_box").with_extension(ext)).unwrap();
+        assert!(a == b, "cornell_box.{ext} differs from the committed file");
+    }
+    let o = radiosity(&["generate", "nonexistent"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("cornell_box"),
+        "the error lists the known names"
+    );
+}
