@@ -110,6 +110,11 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         progress(&format!("exporting to {}", dir.display()));
         let t = Instant::now();
         export_patches(dir, &vox.patches)?;
+        let camera = scene_camera(&config.scene, scene.bounds())?;
+        let png = dir.join("patches.png");
+        crate::preview::render_patches(&vox.patches, &camera, 800, 600)
+            .save(&png)
+            .with_context(|| format!("writing {}", png.display()))?;
         stages.push(StageTime {
             stage: "export",
             seconds: t.elapsed().as_secs_f64(),
@@ -125,6 +130,21 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
             stages,
         },
     })
+}
+
+/// The camera of the scene's camera/lights file (`NAME.json` beside
+/// `NAME.obj`) if there is one, else a default view of the bounds. A file
+/// that exists but is invalid is an error.
+pub fn scene_camera(
+    scene: &Path,
+    bounds: ([f32; 3], [f32; 3]),
+) -> anyhow::Result<crate::scene_config::Camera> {
+    let json = scene.with_extension("json");
+    if json.exists() {
+        Ok(crate::scene_config::load(&json)?.camera)
+    } else {
+        Ok(crate::preview::default_camera(bounds))
+    }
 }
 
 /// The header of `patches.csv` (one row per patch, in matrix order).

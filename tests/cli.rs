@@ -108,6 +108,29 @@ fn bake_reports_counts_and_exports_patches() {
     let mut lines = csv.lines();
     assert_eq!(lines.next().unwrap(), radiosity::bake::PATCHES_CSV_HEADER);
     assert_eq!(lines.count() as u64, patches);
+    // The preview: the red wall (x = 550) is on the camera's left, the green
+    // one (x = 0) on its right.
+    let img = image::open(dir.join("patches.png")).unwrap().to_rgb8();
+    let mean = |x0: u32, x1: u32| -> [f64; 3] {
+        let mut s = [0.0; 3];
+        let mut n = 0.0;
+        for y in 150..450 {
+            for x in x0..x1 {
+                let p = img.get_pixel(x, y);
+                for c in 0..3 {
+                    s[c] += p[c] as f64;
+                }
+                n += 1.0;
+            }
+        }
+        s.map(|v| v / n)
+    };
+    let (left, right) = (mean(100, 180), mean(620, 700));
+    assert!(left[0] > 1.5 * left[1], "left side should be red: {left:?}");
+    assert!(
+        right[1] > 1.5 * right[0],
+        "right side should be green: {right:?}"
+    );
     // Progress goes to stderr, one line per stage.
     assert!(stderr(&o).contains("[bake] voxelizing"));
 }
