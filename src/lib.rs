@@ -39,11 +39,16 @@
 //!   infinite-bounce series converges.
 //! - Memory is proportional to occupied voxels, never to the grid volume.
 
+// `!(x > 0.0)` is used on purpose: it is true for NaN, which must fail
+// the same checks as non-positive values.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod bake;
 pub mod bench;
 pub mod compute;
 pub mod error;
 pub mod generate;
+pub mod preview;
 pub mod scene;
 pub mod scene_config;
 pub mod voxelize;
