@@ -1,10 +1,13 @@
 //! The bake pipeline as one call: validated options in, a report out.
-//! Stages so far: load → voxelize (DESIGN.md section 1, bake steps 1–2);
-//! later stages append to [`BakeReport`].
+//! Stages so far: load → voxelize → form factors → transfer (DESIGN.md
+//! section 1, bake steps 1–4); later stages append to [`BakeReport`].
 
 use crate::compute::{DeviceSelection, Gpu};
 use crate::error::BakeError;
+use crate::form_factor::{self, FormFactorOptions, FormFactorStats, FormFactors};
+use crate::npy;
 use crate::scene::{self, SceneSummary};
+use crate::transfer::{self, Transfer, TransferOptions, TransferStats};
 use crate::voxelize::{self, Backend, Patch, Resolution, VoxelStats};
 use anyhow::Context as _;
 use serde::Serialize;
@@ -27,7 +30,10 @@ pub struct BakeConfig {
     pub scene: PathBuf,
     pub resolution: Resolution,
     pub compute: ComputeChoice,
-    /// Directory for inspection files (`patches.csv`), if asked for.
+    pub form_factor: FormFactorOptions,
+    pub transfer: TransferOptions,
+    /// Directory for inspection files (`patches.csv`, `patches.png`,
+    /// `F.npy`, `T.npy`, `albedo.npy`), if asked for.
     pub export: Option<PathBuf>,
 }
 
@@ -59,13 +65,31 @@ pub struct BakeReport {
     pub scene: SceneSummary,
     pub device: String,
     pub voxels: VoxelStats,
+    pub form_factors: FormFactorStats,
+    pub transfer: TransferStats,
     pub stages: Vec<StageTime>,
 }
 
-/// The result of a bake: patches plus the report.
+/// The result of a bake.
 pub struct BakeOutput {
+    /// The patches kept by the form-factor stage, in matrix order.
     pub patches: Vec<Patch>,
+    pub form_factors: FormFactors,
+    pub transfer: Transfer,
     pub report: BakeReport,
+}
+
+/// A progress bar on stderr for a stage measured in `unit`s (hidden when
+/// stderr is not a terminal).
+fn bar(stage: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{prefix:>14} [{bar:40}] {pos}/{len} ({eta} left)")
+            .expect("a valid template")
+            .progress_chars("=> "),
+    );
+    bar.set_prefix(stage.to_string());
+    bar
 }
 
 /// Runs the bake. `progress` receives one line per stage as it starts.
@@ -106,15 +130,67 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         seconds: t.elapsed().as_secs_f64(),
     });
 
+    progress(&format!(
+        "form factors for {} patches ({} pairs)",
+        vox.patches.len(),
+        (vox.patches.len() as u64).pow(2) / 2
+    ));
+    let t = Instant::now();
+    let pb = bar("form factors");
+    let ff = form_factor::form_factors(
+        &scene,
+        &vox.patches,
+        &vox.grid,
+        &config.form_factor,
+        &backend,
+        &mut |done, total| {
+            pb.set_length(total);
+            pb.set_position(done);
+        },
+    )?;
+    pb.finish_and_clear();
+    stages.push(StageTime {
+        stage: "form factors",
+        seconds: t.elapsed().as_secs_f64(),
+    });
+    let patches: Vec<Patch> = ff.kept.iter().map(|&i| vox.patches[i].clone()).collect();
+    let albedo: Vec<[f32; 3]> = patches.iter().map(|p| p.albedo.map(|a| a as f32)).collect();
+
+    progress(&format!(
+        "transfer matrix, {} bounces, n = {}",
+        config.transfer.bounces, ff.n
+    ));
+    let t = Instant::now();
+    let pb = bar("transfer");
+    let tr = transfer::transfer(
+        &ff.f,
+        ff.n,
+        &albedo,
+        &config.transfer,
+        &backend,
+        &mut |done, total| {
+            pb.set_length(total);
+            pb.set_position(done);
+        },
+    )?;
+    pb.finish_and_clear();
+    stages.push(StageTime {
+        stage: "transfer",
+        seconds: t.elapsed().as_secs_f64(),
+    });
+
     if let Some(dir) = &config.export {
         progress(&format!("exporting to {}", dir.display()));
         let t = Instant::now();
-        export_patches(dir, &vox.patches)?;
-        let camera = scene_camera(&config.scene, scene.bounds())?;
-        let png = dir.join("patches.png");
-        crate::preview::render_patches(&vox.patches, &camera, 800, 600)
-            .save(&png)
-            .with_context(|| format!("writing {}", png.display()))?;
+        export(
+            dir,
+            &config.scene,
+            scene.bounds(),
+            &patches,
+            &ff,
+            &tr,
+            &albedo,
+        )?;
         stages.push(StageTime {
             stage: "export",
             seconds: t.elapsed().as_secs_f64(),
@@ -122,14 +198,60 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     }
 
     Ok(BakeOutput {
-        patches: vox.patches,
         report: BakeReport {
             scene: scene.summary(),
             device,
             voxels: vox.stats,
+            form_factors: ff.stats.clone(),
+            transfer: tr.stats.clone(),
             stages,
         },
+        patches,
+        form_factors: ff,
+        transfer: tr,
     })
+}
+
+/// Writes the inspection files: `patches.csv` and `patches.png` (the kept
+/// patches, in matrix order), `F.npy` (n × n), `T.npy` (3 × n × n,
+/// channel-major) and `albedo.npy` (n × 3). Refuses, before writing
+/// anything, when `T.npy` would exceed [`form_factor::NPY_MAX_BYTES`].
+#[allow(clippy::too_many_arguments)]
+fn export(
+    dir: &Path,
+    scene_path: &Path,
+    bounds: ([f32; 3], [f32; 3]),
+    patches: &[Patch],
+    ff: &FormFactors,
+    tr: &Transfer,
+    albedo: &[[f32; 3]],
+) -> anyhow::Result<()> {
+    let n = ff.n;
+    let t_bytes = 3 * (n as u64).pow(2) * 4;
+    if t_bytes > form_factor::NPY_MAX_BYTES {
+        anyhow::bail!(
+            "refusing to export T.npy: 3 × {n} × {n} float32 takes {t_bytes} bytes, above the \
+             {} byte export limit; use fewer patches or no --export",
+            form_factor::NPY_MAX_BYTES
+        );
+    }
+    export_patches(dir, patches)?;
+    let camera = scene_camera(scene_path, bounds)?;
+    let png = dir.join("patches.png");
+    crate::preview::render_patches(patches, &camera, 800, 600)
+        .save(&png)
+        .with_context(|| format!("writing {}", png.display()))?;
+    form_factor::write_f_npy(&dir.join("F.npy"), ff)?;
+    let mut t = Vec::with_capacity(3 * n * n);
+    for c in 0..3 {
+        t.extend_from_slice(tr.channel(c));
+    }
+    let path = dir.join("T.npy");
+    npy::write_f32(&path, &[3, n, n], &t).with_context(|| format!("writing {}", path.display()))?;
+    let flat: Vec<f32> = albedo.iter().flatten().copied().collect();
+    let path = dir.join("albedo.npy");
+    npy::write_f32(&path, &[n, 3], &flat).with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
 }
 
 /// The camera of the scene's camera/lights file (`NAME.json` beside
@@ -227,6 +349,8 @@ impl std::fmt::Display for BakeReport {
             "voxelize detail: pieces {:.3} s (kernels {:.3} s), reduce {:.3} s",
             v.seconds_pieces, v.seconds_kernels, v.seconds_reduce
         )?;
+        writeln!(f, "{}", self.form_factors)?;
+        writeln!(f, "{}", self.transfer)?;
         write!(f, "stages:")?;
         for s in &self.stages {
             write!(f, " {} {:.3} s;", s.stage, s.seconds)?;

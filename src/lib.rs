@@ -45,10 +45,15 @@
 
 pub mod bake;
 pub mod bench;
+pub mod bvh;
 pub mod compute;
 pub mod error;
+pub mod form_factor;
+pub mod gemm;
 pub mod generate;
+pub mod npy;
 pub mod preview;
 pub mod scene;
 pub mod scene_config;
+pub mod transfer;
 pub mod voxelize;

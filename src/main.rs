@@ -5,9 +5,12 @@
 use anyhow::{bail, Context as _};
 use clap::{Args, Parser, Subcommand};
 use radiosity::bake::{self, BakeConfig, ComputeChoice};
+use radiosity::compute::Gpu;
 use radiosity::compute::{self, DeviceSelection};
-use radiosity::voxelize::Resolution;
-use radiosity::{bench, generate, scene};
+use radiosity::form_factor::FormFactorOptions;
+use radiosity::transfer::{Bounces, StressCase, TransferOptions};
+use radiosity::voxelize::{Backend, Resolution};
+use radiosity::{bench, form_factor, gemm, generate, scene, transfer};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -39,7 +42,7 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Bake a scene. At this stage of the project: load, voxelize, report.
+    /// Bake a scene: load, voxelize, form factors, transfer matrix, report.
     Bake(BakeArgs),
     /// Write a bundled scene (OBJ + MTL + camera/lights JSON) into a directory.
     Generate {
@@ -75,6 +78,37 @@ enum BenchCommand {
         #[command(flatten)]
         device: DeviceArgs,
     },
+    /// Form factors: OpenCL and the CPU reference at several patch counts.
+    FormFactors {
+        /// The scene file.
+        scene: PathBuf,
+        /// Comma-separated target patch counts.
+        #[arg(long, value_delimiter = ',', required = true)]
+        patches: Vec<usize>,
+        /// Skip the (slow) CPU reference.
+        #[arg(long)]
+        no_cpu_reference: bool,
+        #[command(flatten)]
+        device: DeviceArgs,
+    },
+    /// Transfer stage: GEMM throughput against faer, and the stress table
+    /// (error against the f64 reference over albedos and sizes).
+    Transfer {
+        /// Comma-separated GEMM sizes.
+        #[arg(long, value_delimiter = ',', default_value = "1024,2048")]
+        gemm_sizes: Vec<usize>,
+        /// Comma-separated stress sizes n (closed synthetic rooms).
+        #[arg(long, value_delimiter = ',', default_value = "1024")]
+        stress_sizes: Vec<usize>,
+        /// Rooms per stress case (block-diagonal F; 1 = dense).
+        #[arg(long, default_value_t = 1)]
+        rooms: usize,
+        /// Comma-separated albedos for the stress table.
+        #[arg(long, value_delimiter = ',', default_value = "0.5,0.9,0.99,0.999")]
+        albedos: Vec<f64>,
+        #[command(flatten)]
+        device: DeviceArgs,
+    },
 }
 
 #[derive(Args, Clone)]
@@ -98,7 +132,18 @@ struct BakeArgs {
     /// Target patch count; the voxel size is searched for. Default 2000.
     #[arg(long)]
     patches: Option<usize>,
-    /// Write inspection files (patches.csv) into this directory.
+    /// Light bounces folded into the transfer matrix: a number k >= 1, or
+    /// `inf` for the converged limit (default: inf).
+    #[arg(long, value_parser = parse_bounces)]
+    bounces: Option<Bounces>,
+    /// Form-factor emitter samples per side (1..=16, default 4).
+    #[arg(long)]
+    ff_samples: Option<u32>,
+    /// Form-factor visibility rays per patch pair (1..=64, default 4).
+    #[arg(long)]
+    ff_rays: Option<u32>,
+    /// Write inspection files (patches.csv, patches.png, F.npy, T.npy,
+    /// albedo.npy) into this directory.
     #[arg(long, value_name = "DIR")]
     export: Option<PathBuf>,
     /// Run every stage on the CPU reference instead of OpenCL.
@@ -130,14 +175,40 @@ impl BakeArgs {
                 out.display()
             );
         }
+        let mut form_factor = FormFactorOptions::default();
+        if let Some(m) = self.ff_samples {
+            form_factor.samples = m;
+        }
+        if let Some(r) = self.ff_rays {
+            form_factor.rays = r;
+        }
+        let transfer = TransferOptions {
+            bounces: self.bounces.unwrap_or_default(),
+            ..TransferOptions::default()
+        };
         let config = BakeConfig {
             scene: self.scene,
             resolution,
             compute,
+            form_factor,
+            transfer,
             export: self.export,
         };
         config.validate()?;
         Ok((config, self.json))
+    }
+}
+
+/// `--bounces`: a positive integer or `inf`.
+fn parse_bounces(s: &str) -> Result<Bounces, String> {
+    match s.trim() {
+        "inf" | "infinite" | "∞" => Ok(Bounces::Infinite),
+        v => match v.parse::<u32>() {
+            Ok(k) if k >= 1 => Ok(Bounces::K(k)),
+            _ => Err(format!(
+                "expected a number of bounces >= 1 or `inf`, got {s:?}"
+            )),
+        },
     }
 }
 
@@ -229,6 +300,42 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 let table = bench::voxelize(&scene, &voxel_sizes, repeat, selection)
                     .with_context(|| format!("benchmarking voxelization of {}", scene.display()))?;
                 print!("{table}");
+            }
+            BenchCommand::FormFactors {
+                scene,
+                patches,
+                no_cpu_reference,
+                device,
+            } => {
+                let selection = DeviceSelection::from_flag_or_env(device.device)?;
+                let table = form_factor::bench(
+                    &scene,
+                    &patches,
+                    &FormFactorOptions::default(),
+                    selection,
+                    !no_cpu_reference,
+                )
+                .with_context(|| format!("benchmarking form factors of {}", scene.display()))?;
+                print!("{table}");
+            }
+            BenchCommand::Transfer {
+                gemm_sizes,
+                stress_sizes,
+                rooms,
+                albedos,
+                device,
+            } => {
+                let gpu = Gpu::new(DeviceSelection::from_flag_or_env(device.device)?)
+                    .context("opening the OpenCL device")?;
+                let backend = Backend::OpenCl(&gpu);
+                println!("## GEMM: OpenCL against faer (f32), same run\n");
+                print!("{}", gemm::bench_gemm(&gemm_sizes, 3, &backend)?);
+                let cases: Vec<StressCase> = stress_sizes
+                    .iter()
+                    .map(|&n| StressCase { n, rooms })
+                    .collect();
+                println!("\n## T_inf stress: error against the f64 reference\n");
+                print!("{}", transfer::bench_stress(&cases, &albedos, &backend)?);
             }
         },
     }

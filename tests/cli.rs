@@ -95,15 +95,28 @@ fn bake_reports_counts_and_exports_patches() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
-    let patches = v["voxels"]["patches"].as_u64().unwrap();
+    let patches = v["form_factors"]["kept"].as_u64().unwrap();
     assert!(patches > 100);
+    assert!(patches <= v["voxels"]["patches"].as_u64().unwrap());
     let stages: Vec<&str> = v["stages"]
         .as_array()
         .unwrap()
         .iter()
         .map(|s| s["stage"].as_str().unwrap())
         .collect();
-    assert_eq!(stages, ["load", "voxelize", "export"]);
+    assert_eq!(
+        stages,
+        ["load", "voxelize", "form factors", "transfer", "export"]
+    );
+    // The matrices, in the order of patches.csv.
+    let n = patches as usize;
+    let (shape, f) = radiosity::npy::read_f32(&dir.join("F.npy")).unwrap();
+    assert_eq!(shape, [n, n]);
+    assert!(f.iter().all(|x| x.is_finite() && *x >= 0.0));
+    let (shape, _) = radiosity::npy::read_f32(&dir.join("T.npy")).unwrap();
+    assert_eq!(shape, [3, n, n]);
+    let (shape, _) = radiosity::npy::read_f32(&dir.join("albedo.npy")).unwrap();
+    assert_eq!(shape, [n, 3]);
     let csv = std::fs::read_to_string(dir.join("patches.csv")).unwrap();
     let mut lines = csv.lines();
     assert_eq!(lines.next().unwrap(), radiosity::bake::PATCHES_CSV_HEADER);
