@@ -47,6 +47,7 @@ pub mod bake;
 pub mod bench;
 pub mod bvh;
 pub mod compute;
+pub mod direct;
 pub mod error;
 pub mod form_factor;
 pub mod gemm;

@@ -1,0 +1,248 @@
+//! Direct light on patches, on the CPU: the irradiance `D_j` that the
+//! lights of a scene's camera/lights file put on each patch, with shadows
+//! from the original triangles, and the exitance `B0 = ρ ∘ D + E` that the
+//! transfer matrix gathers (DESIGN.md section 2). The run-time renderer
+//! computes `D` from shadow maps on the GPU; this is the reference it will
+//! be compared with, and the source of the seeded random lights that the
+//! compression report measures `H = T̃ · B0` over.
+
+use crate::bvh::Bvh;
+use crate::scene::Scene;
+use crate::scene_config::Light;
+use crate::voxelize::Patch;
+use rayon::prelude::*;
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn normalize(a: [f64; 3]) -> [f64; 3] {
+    let l = dot(a, a).sqrt();
+    a.map(|x| x / l)
+}
+fn f64s(v: [f32; 3]) -> [f64; 3] {
+    v.map(|x| x as f64)
+}
+
+/// Shadow rays per patch and light: a 2 × 2 stratified grid over the
+/// patch's square, so partly shadowed patches get fractional light.
+pub const SHADOW_SAMPLES: usize = 4;
+
+/// Direct light on patches, with a BVH over the scene's triangles.
+pub struct DirectLight {
+    bvh: Bvh,
+    /// Shadow rays start this far in front of the surface (scene units):
+    /// 1e-4 of the scene's extent, far above f32 rounding of the
+    /// triangles and far below any feature a patch resolves.
+    offset: f64,
+    /// Length of rays towards directional lights: twice the scene's extent.
+    far: f64,
+}
+
+impl DirectLight {
+    pub fn new(scene: &Scene) -> DirectLight {
+        let (lo, hi) = scene.bounds();
+        let extent = (0..3)
+            .map(|a| (hi[a] - lo[a]) as f64)
+            .fold(0.0, f64::max)
+            .max(1e-30);
+        DirectLight {
+            bvh: Bvh::build(&scene.positions, &scene.triangles, [0.0; 3]),
+            offset: 1e-4 * extent,
+            far: 2.0 * extent,
+        }
+    }
+
+    fn visible(&self, from: [f64; 3], to: [f64; 3]) -> bool {
+        self.bvh
+            .any_hit(from, sub(to, from), |_, _| false)
+            .is_none()
+    }
+
+    /// Irradiance `D` (RGB) on every patch from `lights`.
+    pub fn irradiance(&self, patches: &[Patch], lights: &[Light]) -> Vec<[f64; 3]> {
+        patches
+            .par_iter()
+            .map(|p| {
+                let n = p.normal;
+                let helper = if n[0].abs() < 0.9 {
+                    [1.0, 0.0, 0.0]
+                } else {
+                    [0.0, 1.0, 0.0]
+                };
+                let u = normalize(cross(n, helper));
+                let v = cross(n, u);
+                let h = 0.25 * p.area.sqrt();
+                let points: Vec<[f64; 3]> = [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)]
+                    .iter()
+                    .map(|&(a, b)| {
+                        std::array::from_fn(|k| {
+                            p.centre[k] + h * (a * u[k] + b * v[k]) + self.offset * n[k]
+                        })
+                    })
+                    .collect();
+                let mut d = [0.0; 3];
+                for light in lights {
+                    let mut e = [0.0; 3];
+                    for x in &points {
+                        let s = self.from_light(light, *x, n);
+                        for c in 0..3 {
+                            e[c] += s[c] / SHADOW_SAMPLES as f64;
+                        }
+                    }
+                    for c in 0..3 {
+                        d[c] += e[c];
+                    }
+                }
+                d
+            })
+            .collect()
+    }
+
+    /// Irradiance at point `x` with normal `n` from one light, shadowed.
+    fn from_light(&self, light: &Light, x: [f64; 3], n: [f64; 3]) -> [f64; 3] {
+        match light {
+            Light::Directional {
+                direction,
+                irradiance,
+            } => {
+                let to_light = normalize(f64s(*direction)).map(|c| -c);
+                let cos = dot(n, to_light);
+                if cos <= 0.0
+                    || !self.visible(x, std::array::from_fn(|k| x[k] + self.far * to_light[k]))
+                {
+                    return [0.0; 3];
+                }
+                f64s(*irradiance).map(|e| e * cos)
+            }
+            Light::Point {
+                position,
+                intensity,
+            } => self.from_point(x, n, f64s(*position), f64s(*intensity), 1.0),
+            Light::Spot {
+                position,
+                direction,
+                intensity,
+                cone_angle_deg,
+                beam_angle_deg,
+            } => {
+                let pos = f64s(*position);
+                let axis = normalize(f64s(*direction));
+                let from_light = normalize(sub(x, pos));
+                let angle = dot(axis, from_light).clamp(-1.0, 1.0).acos().to_degrees();
+                let (cone, beam) = (*cone_angle_deg as f64, *beam_angle_deg as f64);
+                // Mitsuba 3's spot profile: 1 inside the beam, falling
+                // linearly in angle to 0 at the cone.
+                let profile = if angle <= beam {
+                    1.0
+                } else if angle < cone {
+                    (cone - angle) / (cone - beam)
+                } else {
+                    0.0
+                };
+                if profile <= 0.0 {
+                    return [0.0; 3];
+                }
+                self.from_point(x, n, pos, f64s(*intensity), profile)
+            }
+        }
+    }
+
+    fn from_point(
+        &self,
+        x: [f64; 3],
+        n: [f64; 3],
+        pos: [f64; 3],
+        intensity: [f64; 3],
+        scale: f64,
+    ) -> [f64; 3] {
+        let l = sub(pos, x);
+        let r2 = dot(l, l);
+        let cos = dot(n, l) / r2.sqrt();
+        if cos <= 0.0 || r2 == 0.0 || !self.visible(x, pos) {
+            return [0.0; 3];
+        }
+        intensity.map(|i| scale * i * cos / r2)
+    }
+}
+
+/// `B0 = ρ ∘ D + E` per patch.
+pub fn exitance(patches: &[Patch], d: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    patches
+        .iter()
+        .zip(d)
+        .map(|(p, d)| std::array::from_fn(|c| p.albedo[c] * d[c] + p.emission[c]))
+        .collect()
+}
+
+/// SplitMix64 (Steele, Lea, Flood 2014): a tiny seeded generator, so the
+/// random lights are the same on every machine.
+struct SplitMix(u64);
+
+impl SplitMix {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// `count` seeded random lights for a scene with `bounds`: even indices
+/// directional (travelling downwards at 15°–75° from the vertical, unit
+/// irradiance), odd indices spot lights (inside the middle 80 % of the
+/// bounds, aimed at a random point of the bounds, cone 30°–60°, beam two
+/// thirds of the cone, intensity `extent²` so irradiance is O(1)).
+pub fn random_lights(bounds: ([f32; 3], [f32; 3]), count: usize, seed: u64) -> Vec<Light> {
+    let mut rng = SplitMix(seed);
+    let (lo, hi) = (f64s(bounds.0), f64s(bounds.1));
+    let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+    let inside = |rng: &mut SplitMix, margin: f64| -> [f64; 3] {
+        std::array::from_fn(|a| {
+            lo[a] + (hi[a] - lo[a]) * (margin + (1.0 - 2.0 * margin) * rng.next())
+        })
+    };
+    (0..count)
+        .map(|i| {
+            if i % 2 == 0 {
+                let theta = (15.0 + 60.0 * rng.next()).to_radians();
+                let phi = 2.0 * std::f64::consts::PI * rng.next();
+                let dir = [
+                    theta.sin() * phi.cos(),
+                    -theta.cos(),
+                    theta.sin() * phi.sin(),
+                ];
+                Light::Directional {
+                    direction: dir.map(|x| x as f32),
+                    irradiance: [1.0; 3],
+                }
+            } else {
+                let pos = inside(&mut rng, 0.1);
+                let mut target = inside(&mut rng, 0.0);
+                if dot(sub(target, pos), sub(target, pos)) == 0.0 {
+                    target[1] -= 1.0;
+                }
+                let cone = 30.0 + 30.0 * rng.next();
+                let i = (extent * extent) as f32;
+                Light::Spot {
+                    position: pos.map(|x| x as f32),
+                    direction: normalize(sub(target, pos)).map(|x| x as f32),
+                    intensity: [i; 3],
+                    cone_angle_deg: cone as f32,
+                    beam_angle_deg: (cone * 2.0 / 3.0) as f32,
+                }
+            }
+        })
+        .collect()
+}
