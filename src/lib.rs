@@ -46,6 +46,7 @@
 pub mod bake;
 pub mod bench;
 pub mod bvh;
+pub mod codec;
 pub mod compute;
 pub mod direct;
 pub mod error;
@@ -54,6 +55,7 @@ pub mod gemm;
 pub mod generate;
 pub mod npy;
 pub mod preview;
+pub mod reorder;
 pub mod scene;
 pub mod scene_config;
 pub mod transfer;
