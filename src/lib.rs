@@ -44,6 +44,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod bake;
+pub mod bakefile;
 pub mod bench;
 pub mod bvh;
 pub mod codec;
@@ -53,6 +54,7 @@ pub mod error;
 pub mod form_factor;
 pub mod gemm;
 pub mod generate;
+pub mod mesh_map;
 pub mod npy;
 pub mod preview;
 pub mod reorder;

@@ -1,0 +1,121 @@
+//! Fuzzes the `.rad` reader, `radiosity::bakefile::parse`, which must
+//! return an error and never panic, whatever the bytes.
+//!
+//! Raw bytes alone rarely get past the magic and the checksums, so each
+//! input is used three ways:
+//! 1. as a whole file;
+//! 2. as edits to a valid file (the input's bytes in threes: position high,
+//!    position low, new value), with the file truncated to a length taken
+//!    from the input when its first bit says so;
+//! 3. the same edits followed by *resealing*: every checksum whose section
+//!    lies inside the file, and the header checksum, recomputed. This
+//!    reaches the table and field validation behind the checksums, where
+//!    the interesting code is.
+//!
+//! A file that parses must re-encode (the writer validates with the same
+//! rules, so it must accept what the reader accepted) to bytes that parse
+//! back to the same value. (Not necessarily to the same bytes: the reader
+//! finds sections through the table, so a valid file may list them in
+//! another order than the writer does.)
+
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use radiosity::bakefile::{
+    self, crc32, encode, header_checksum, parse, BakeFile, CodecBlob, PatchRecord, SceneHash,
+    ENTRY_LEN, HEADER_LEN,
+};
+use std::sync::OnceLock;
+
+/// A small valid bake file: 3 patches, 4 vertices.
+fn base() -> &'static [u8] {
+    static BASE: OnceLock<Vec<u8>> = OnceLock::new();
+    BASE.get_or_init(|| {
+        let bf = BakeFile {
+            options_json: r#"{"voxel_size":0.25}"#.into(),
+            scene_hash: SceneHash {
+                obj: 1,
+                obj_len: 2,
+                mtl: 3,
+                textures: 4,
+            },
+            patches: (0..3)
+                .map(|i| PatchRecord {
+                    centre: [i as f32, 0.0, 1.0],
+                    normal: [0.0, 0.0, 1.0],
+                    area: 1.0,
+                    albedo: [0.5; 3],
+                    emission: [0.0; 3],
+                })
+                .collect(),
+            permutation: vec![1, 2, 0],
+            codec: CodecBlob {
+                kind: 1,
+                n: 3,
+                tile_size: 32,
+                params_json: "{}".into(),
+                scales: [1.0; 3],
+                dense: vec![1, 2, 3, 4, 5, 6, 7, 8, 9],
+                tile_index: vec![0; 6],
+                sparse: vec![9; 12],
+            },
+            mesh_map: vec![
+                [(0, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)],
+                [(1, 0.5), (2, 0.5), (0, 0.0), (0, 0.0)],
+                [(0, 0.0); 4],
+                [(2, 0.25), (1, 0.25), (0, 0.5), (0, 0.0)],
+            ],
+            info_json: "[1,2,3]".into(),
+        };
+        encode(&bf).expect("the base file is valid")
+    })
+}
+
+/// Recomputes every checksum that can be: the CRC of each table entry whose
+/// section lies inside the file, then the header checksum.
+fn reseal(b: &mut [u8]) {
+    if b.len() < HEADER_LEN {
+        return;
+    }
+    let count = u32::from_le_bytes([b[24], b[25], b[26], b[27]]) as usize;
+    let Some(table_end) = count
+        .checked_mul(ENTRY_LEN)
+        .and_then(|t| t.checked_add(HEADER_LEN))
+        .filter(|&t| t <= b.len())
+    else {
+        return;
+    };
+    for i in 0..count {
+        let e = HEADER_LEN + ENTRY_LEN * i;
+        let off = u64::from_le_bytes(b[e + 8..e + 16].try_into().unwrap());
+        let len = u64::from_le_bytes(b[e + 16..e + 24].try_into().unwrap());
+        if let Some(end) = off.checked_add(len).filter(|&end| end <= b.len() as u64) {
+            let c = crc32(&b[off as usize..end as usize]);
+            b[e + 4..e + 8].copy_from_slice(&c.to_le_bytes());
+        }
+    }
+    let h = header_checksum(b, table_end);
+    b[28..32].copy_from_slice(&h.to_le_bytes());
+}
+
+fuzz_target!(|data: &[u8]| {
+    let _ = parse(data);
+
+    let mut edited = base().to_vec();
+    for e in data.get(1..).unwrap_or(&[]).chunks_exact(3) {
+        let at = (e[0] as usize) << 8 | e[1] as usize;
+        let len = edited.len();
+        edited[at % len] = e[2];
+    }
+    if data.first().is_some_and(|f| f & 2 != 0) {
+        let keep = data.get(1).map_or(0, |&k| k as usize * 2);
+        edited.truncate(keep.min(edited.len()));
+    }
+    let _ = parse(&edited);
+    reseal(&mut edited);
+    if let Ok(bf) = parse(&edited) {
+        let again = encode(&bf).expect("an accepted file re-encodes");
+        assert_eq!(parse(&again).expect("a re-encoded file parses"), bf);
+    }
+    let _ = bakefile::sections(&edited, "fuzz");
+});
