@@ -7,28 +7,12 @@
 //! compression report measures `H = T̃ · B0` over.
 
 use crate::bvh::Bvh;
+use crate::math::{cross, dot, normalize, sub};
 use crate::scene::Scene;
 use crate::scene_config::Light;
 use crate::voxelize::Patch;
 use rayon::prelude::*;
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn normalize(a: [f64; 3]) -> [f64; 3] {
-    let l = dot(a, a).sqrt();
-    a.map(|x| x / l)
-}
 fn f64s(v: [f32; 3]) -> [f64; 3] {
     v.map(|x| x as f64)
 }

@@ -54,6 +54,7 @@ pub mod error;
 pub mod form_factor;
 pub mod gemm;
 pub mod generate;
+pub mod math;
 pub mod mesh_map;
 pub mod npy;
 pub mod preview;

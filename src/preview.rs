@@ -4,6 +4,7 @@
 //! that a user can see what the simplification kept, without a GPU.
 //! Patches facing away from the camera are culled.
 
+use crate::math::{cross, dot, normalize, sub};
 use crate::scene_config::Camera;
 use crate::voxelize::Patch;
 use image::{Rgb, RgbImage};
@@ -16,24 +17,6 @@ struct View {
     forward: [f64; 3],
     /// 1 / tan(fov_y / 2).
     focal: f64,
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn normalize(a: [f64; 3]) -> [f64; 3] {
-    let l = dot(a, a).sqrt();
-    a.map(|x| x / l)
 }
 
 impl View {

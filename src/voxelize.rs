@@ -50,6 +50,7 @@
 
 use crate::compute::{round_up, Access, Gpu};
 use crate::error::BakeError;
+use crate::math::{cross, dot, sub};
 use crate::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -380,22 +381,6 @@ pub fn grid_coords(scene: &Scene, grid: &Grid) -> Vec<[f64; 9]> {
             c
         })
         .collect()
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// The separating-axis test of `tri_box_overlap` in the kernel, in f64.

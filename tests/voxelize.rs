@@ -6,28 +6,12 @@
 mod common;
 
 use common::{gpu, quad, write_quads, Quad};
+use radiosity::math::{cross, dot, normalize as norm};
 use radiosity::scene;
 use radiosity::voxelize::{
     self, cl_pieces, compare, compare_pieces, cpu_pieces, grid_coords, voxelize_at, Backend,
     Direction, Grid, Resolution, Voxelization,
 };
-
-fn norm(v: [f64; 3]) -> [f64; 3] {
-    let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    v.map(|x| x / l)
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
 
 /// f32 rounding of grid coordinates: a coordinate of magnitude up to
 /// `max_dim` voxels carries an error of `max_dim * f32::EPSILON / 2`, and a
