@@ -351,6 +351,13 @@ fn linear_fields_are_reproduced_with_an_error_that_falls_with_voxel_size() {
         );
         // f32 weights and values: a few ulps of |H| ≤ 4.
         assert!(max_interior <= 1e-5, "inside the hull: {max_interior}");
+        // ... and the map flags every vertex inside the hull as such.
+        let inside = scene
+            .positions
+            .iter()
+            .filter(|p| p[0].abs() as f64 <= 4.0 - s / 2.0 && p[2].abs() as f64 <= 4.0 - s / 2.0)
+            .count();
+        assert!(map.stats.linear_precision as usize >= inside);
         // At the edge the vertex lies up to s/2 (√2 s/2 at a corner)
         // beyond the last centres and non-negative weights cannot
         // extrapolate: the error is bounded by |∇H| s.
