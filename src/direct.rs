@@ -78,7 +78,7 @@ impl DirectLight {
                 for light in lights {
                     let mut e = [0.0; 3];
                     for x in &points {
-                        let s = self.from_light(light, *x, n);
+                        let s = self.light_irradiance(light, *x, n);
                         for c in 0..3 {
                             e[c] += s[c] / SHADOW_SAMPLES as f64;
                         }
@@ -93,7 +93,7 @@ impl DirectLight {
     }
 
     /// Irradiance at point `x` with normal `n` from one light, shadowed.
-    fn from_light(&self, light: &Light, x: [f64; 3], n: [f64; 3]) -> [f64; 3] {
+    fn light_irradiance(&self, light: &Light, x: [f64; 3], n: [f64; 3]) -> [f64; 3] {
         match light {
             Light::Directional {
                 direction,
@@ -111,7 +111,7 @@ impl DirectLight {
             Light::Point {
                 position,
                 intensity,
-            } => self.from_point(x, n, f64s(*position), f64s(*intensity), 1.0),
+            } => self.point_irradiance(x, n, f64s(*position), f64s(*intensity), 1.0),
             Light::Spot {
                 position,
                 direction,
@@ -136,12 +136,12 @@ impl DirectLight {
                 if profile <= 0.0 {
                     return [0.0; 3];
                 }
-                self.from_point(x, n, pos, f64s(*intensity), profile)
+                self.point_irradiance(x, n, pos, f64s(*intensity), profile)
             }
         }
     }
 
-    fn from_point(
+    fn point_irradiance(
         &self,
         x: [f64; 3],
         n: [f64; 3],
