@@ -38,6 +38,7 @@
 //! the square lies on, when there is one (any real blocking polygon is a
 //! valid certificate, whichever triangle the ray hit).
 
+use crate::math::{cross, dot, sub};
 use crate::voxelize::Direction;
 use std::collections::HashMap;
 use std::time::Instant;
@@ -157,19 +158,6 @@ pub struct Bvh {
     pub stats: BvhStats,
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
 fn f64s(v: [f32; 3]) -> [f64; 3] {
     v.map(f64::from)
 }

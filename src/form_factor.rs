@@ -154,6 +154,7 @@
 use crate::bvh::{self, Bvh, BvhStats, Cert, Node, Square, Tri};
 use crate::compute::{round_up, Access, Gpu};
 use crate::error::BakeError;
+use crate::math::{cross, dot, sub};
 use crate::npy;
 use crate::scene::Scene;
 use crate::voxelize::{Backend, Grid, Patch};
@@ -446,24 +447,11 @@ pub struct Prepared {
     pub gauss: Vec<Vec<(f64, f64)>>,
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
 fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
     [a[0] * s, a[1] * s, a[2] * s]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 fn unit(a: [f64; 3]) -> [f64; 3] {
     scale(a, 1.0 / dot(a, a).sqrt())

@@ -90,6 +90,7 @@
 
 use crate::bvh::Bvh;
 use crate::error::BakeError;
+use crate::math::{cross, dot, sub};
 use crate::scene::Scene;
 use crate::voxelize::{Direction, Voxelization};
 use rayon::prelude::*;
@@ -242,24 +243,11 @@ impl MeshMap {
     }
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
 fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
     a.map(|x| x * s)
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 fn norm(a: [f64; 3]) -> f64 {
     dot(a, a).sqrt()

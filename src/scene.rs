@@ -32,6 +32,7 @@ use std::io::{self, BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
 use crate::error::SceneError;
+use crate::math::{cross, dot, sub};
 
 /// Albedo components are clamped to at most this value: every `ρ < 1` keeps
 /// `T_∞ = F (I − diag(ρ) F)^{-1}` finite, and 0.99 bounds the infinite-bounce
@@ -1474,24 +1475,8 @@ fn mean_u8(samples: &[u8], stride: usize, colour: usize) -> [f64; 3] {
 
 // Small f64 vector helpers.
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
 fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 fn norm(a: [f64; 3]) -> f64 {
