@@ -1580,15 +1580,7 @@ fn bc1_build4(a: u16, b: u16, src: &[[u8; 3]; 16]) -> ([u8; 8], [u8; 16], u64) {
         idx[p] = best as u8;
         sse += err(best);
     }
-    let mut block = [0u8; 8];
-    block[0..2].copy_from_slice(&c0.to_le_bytes());
-    block[2..4].copy_from_slice(&c1.to_le_bytes());
-    let bits = idx
-        .iter()
-        .enumerate()
-        .fold(0u32, |acc, (p, &k)| acc | (k as u32) << (2 * p));
-    block[4..8].copy_from_slice(&bits.to_le_bytes());
-    (block, idx, sse)
+    (pack_bc1(c0, c1, &idx), idx, sse)
 }
 
 /// The encoder's block for a block without black texels, made safe and
@@ -1709,6 +1701,12 @@ fn bc1_build3(a: u16, b: u16, src: &[[u8; 3]; 16]) -> ([u8; 8], [u8; 16], u64) {
         idx[p] = best as u8;
         sse += err(best);
     }
+    (pack_bc1(c0, c1, &idx), idx, sse)
+}
+
+/// A BC1 block: the two RGB565 endpoints, then 2-bit indices, texel 0 in
+/// the lowest bits (the S3TC layout).
+fn pack_bc1(c0: u16, c1: u16, idx: &[u8; 16]) -> [u8; 8] {
     let mut block = [0u8; 8];
     block[0..2].copy_from_slice(&c0.to_le_bytes());
     block[2..4].copy_from_slice(&c1.to_le_bytes());
@@ -1717,7 +1715,7 @@ fn bc1_build3(a: u16, b: u16, src: &[[u8; 3]; 16]) -> ([u8; 8], [u8; 16], u64) {
         .enumerate()
         .fold(0u32, |acc, (p, &k)| acc | (k as u32) << (2 * p));
     block[4..8].copy_from_slice(&bits.to_le_bytes());
-    (block, idx, sse)
+    block
 }
 
 /// Packs an RGB colour in [0, 255] (f64) to RGB565, rounding.
