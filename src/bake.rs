@@ -1,13 +1,26 @@
-//! The bake pipeline as one call: validated options in, a report out.
-//! Stages so far: load → voxelize → form factors → transfer (DESIGN.md
-//! section 1, bake steps 1–4); later stages append to [`BakeReport`].
+//! The bake pipeline as one call: validated options in, a report (and the
+//! `.rad` file) out. Stages (DESIGN.md section 1, bake steps 1–8): load →
+//! voxelize → form factors → transfer → reorder → encode → mesh-to-patch
+//! map → write. The compression error of the bake is measured on the way:
+//! `H = T̃ · B0` against the exact `T · B0` over seeded random lights
+//! ([`crate::direct::random_lights`], direct light with shadows on the CPU),
+//! and `--max-error` uses the same lights to choose the codec.
+//!
+//! Everything written to the file is deterministic (no timestamps, no
+//! timings): the same scene and options give the same bytes. Timings go to
+//! the terminal report only.
 
+use crate::bakefile::{self, BakeFile, PatchRecord, SceneHash};
+use crate::codec::{self, CodecKind, Encoded};
 use crate::compute::{DeviceSelection, Gpu};
+use crate::direct;
 use crate::error::BakeError;
 use crate::form_factor::{self, FormFactorOptions, FormFactorStats, FormFactors};
+use crate::mesh_map::{self, MeshMapStats};
 use crate::npy;
+use crate::reorder::{self, Permutation, ReorderMethod, ReorderStats};
 use crate::scene::{self, SceneSummary};
-use crate::transfer::{self, Transfer, TransferOptions, TransferStats};
+use crate::transfer::{self, Bounces, Transfer, TransferOptions, TransferStats};
 use crate::voxelize::{self, Backend, Patch, Resolution, VoxelStats};
 use anyhow::Context as _;
 use serde::Serialize;
@@ -24,6 +37,29 @@ pub enum ComputeChoice {
     CpuReference,
 }
 
+/// How the codec is chosen.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub enum CodecChoice {
+    /// This setting.
+    Fixed(CodecKind),
+    /// The cheapest of [`codec::default_candidates`] whose relative RMS
+    /// error of `H` over the error lights is at most this.
+    MaxError(f64),
+}
+
+impl Default for CodecChoice {
+    fn default() -> Self {
+        CodecChoice::Fixed(CodecKind::default())
+    }
+}
+
+/// Seed of the random lights the compression error is measured over (the
+/// same as the compression report's, `docs/compression.md`).
+pub const ERROR_LIGHTS_SEED: u64 = 0x5EED;
+
+/// Default number of those lights.
+pub const DEFAULT_ERROR_LIGHTS: usize = 64;
+
 /// The validated options of one bake.
 #[derive(Clone, Debug, Serialize)]
 pub struct BakeConfig {
@@ -32,23 +68,69 @@ pub struct BakeConfig {
     pub compute: ComputeChoice,
     pub form_factor: FormFactorOptions,
     pub transfer: TransferOptions,
+    /// The reordering; `None`: [`ReorderMethod::default_for`] the patch count.
+    pub reorder: Option<ReorderMethod>,
+    pub codec: CodecChoice,
+    /// Seeded random lights the compression error is measured over (0: not
+    /// measured; `--max-error` needs at least 1).
+    pub error_lights: usize,
+    /// The bake file to write, if any.
+    #[serde(skip)]
+    pub output: Option<PathBuf>,
     /// Directory for inspection files (`patches.csv`, `patches.png`,
-    /// `F.npy`, `T.npy`, `albedo.npy`), if asked for.
+    /// `F.npy`, `T.npy`, `T_decoded.npy`, `albedo.npy`), if asked for.
+    #[serde(skip)]
     pub export: Option<PathBuf>,
 }
 
 impl BakeConfig {
+    /// The default options for `scene` at `resolution`, on the default
+    /// OpenCL device, writing nothing.
+    pub fn new(scene: PathBuf, resolution: Resolution) -> BakeConfig {
+        BakeConfig {
+            scene,
+            resolution,
+            compute: ComputeChoice::OpenCl(DeviceSelection::default()),
+            form_factor: FormFactorOptions::default(),
+            transfer: TransferOptions::default(),
+            reorder: None,
+            codec: CodecChoice::default(),
+            error_lights: DEFAULT_ERROR_LIGHTS,
+            output: None,
+            export: None,
+        }
+    }
+
     /// Checks option values that do not depend on the scene.
     pub fn validate(&self) -> Result<(), BakeError> {
         match self.resolution {
-            Resolution::VoxelSize(s) if !(s.is_finite() && s > 0.0) => Err(BakeError::Options(
-                format!("--voxel-size must be a positive finite number, got {s}"),
-            )),
-            Resolution::Patches(0) => {
-                Err(BakeError::Options("--patches must be at least 1".into()))
+            Resolution::VoxelSize(s) if !(s.is_finite() && s > 0.0) => {
+                return Err(BakeError::Options(format!(
+                    "--voxel-size must be a positive finite number, got {s}"
+                )))
             }
-            _ => Ok(()),
+            Resolution::Patches(0) => {
+                return Err(BakeError::Options("--patches must be at least 1".into()))
+            }
+            _ => {}
         }
+        match self.codec {
+            CodecChoice::Fixed(kind) => kind.validate()?,
+            CodecChoice::MaxError(e) if !(e.is_finite() && e >= 0.0) => {
+                return Err(BakeError::Options(format!(
+                    "--max-error must be a finite number ≥ 0, got {e}"
+                )))
+            }
+            CodecChoice::MaxError(_) if self.error_lights == 0 => {
+                return Err(BakeError::Options(
+                    "--max-error measures the error over random lights: --error-lights must \
+                     be at least 1"
+                        .into(),
+                ))
+            }
+            CodecChoice::MaxError(_) => {}
+        }
+        Ok(())
     }
 }
 
@@ -59,6 +141,95 @@ pub struct StageTime {
     pub seconds: f64,
 }
 
+/// The compressed matrix of a bake: the setting, its sizes and its error.
+#[derive(Clone, Debug, Serialize)]
+pub struct CodecSummary {
+    /// The setting ([`CodecKind::name`]).
+    pub codec: String,
+    /// How it was chosen: `"fixed"` or `"max-error E"`.
+    pub chosen_by: String,
+    /// Bytes of the dense tiles, the sparse part and the tile index.
+    pub bytes_dense: u64,
+    pub bytes_sparse: u64,
+    pub bytes_index: u64,
+    /// All bytes per matrix entry (three channels together), and the dense
+    /// and sparse parts' shares.
+    pub bytes_per_entry: f64,
+    pub bytes_per_entry_dense: f64,
+    pub bytes_per_entry_sparse: f64,
+    /// Uncompressed f32 size of the three channels over the total.
+    pub compression_ratio: f64,
+    /// Tiles of the dense part that are zero in every channel, not stored.
+    pub zero_tile_fraction: f64,
+    /// Relative RMS error of `H = T̃ · B0` against `T · B0` over the error
+    /// lights (`None` when not measured).
+    pub h_error: Option<f64>,
+    pub error_lights: usize,
+    pub error_lights_seed: u64,
+}
+
+impl CodecSummary {
+    /// The summary of `e` (error measured elsewhere).
+    pub fn of(e: &Encoded, chosen_by: String, h_error: Option<f64>, lights: usize) -> CodecSummary {
+        let entries = (e.n * e.n).max(1) as f64;
+        let tiles = e.index.tiles_per_side * e.index.tiles_per_side;
+        CodecSummary {
+            codec: e.kind.name(),
+            chosen_by,
+            bytes_dense: e.bytes_dense() as u64,
+            bytes_sparse: e.bytes_sparse() as u64,
+            bytes_index: e.bytes_index() as u64,
+            bytes_per_entry: e.bytes_per_entry(),
+            bytes_per_entry_dense: e.bytes_dense() as f64 / entries,
+            bytes_per_entry_sparse: e.bytes_sparse() as f64 / entries,
+            compression_ratio: 12.0 * entries / e.bytes_total().max(1) as f64,
+            zero_tile_fraction: if tiles == 0 {
+                0.0
+            } else {
+                1.0 - e.index.cols.len() as f64 / tiles as f64
+            },
+            h_error,
+            error_lights: lights,
+            error_lights_seed: ERROR_LIGHTS_SEED,
+        }
+    }
+}
+
+impl std::fmt::Display for CodecSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "codec: {} ({})", self.codec, self.chosen_by)?;
+        writeln!(
+            f,
+            "  bytes per matrix entry: {:.4} dense + {:.4} sparse + {:.4} index = {:.4} \
+             ({} + {} + {} bytes; {:.1}x smaller than f32)",
+            self.bytes_per_entry_dense,
+            self.bytes_per_entry_sparse,
+            self.bytes_per_entry - self.bytes_per_entry_dense - self.bytes_per_entry_sparse,
+            self.bytes_per_entry,
+            self.bytes_dense,
+            self.bytes_sparse,
+            self.bytes_index,
+            self.compression_ratio
+        )?;
+        writeln!(
+            f,
+            "  zero tiles skipped: {:.1} %",
+            100.0 * self.zero_tile_fraction
+        )?;
+        match self.h_error {
+            Some(e) => write!(
+                f,
+                "  compression error: relative RMS error of H = T̃·B0 {:.3} % over {} seeded \
+                 random lights (seed {:#x})",
+                100.0 * e,
+                self.error_lights,
+                self.error_lights_seed
+            ),
+            None => write!(f, "  compression error: not measured (--error-lights 0)"),
+        }
+    }
+}
+
 /// What a bake did, for the terminal and for `--json`.
 #[derive(Clone, Debug, Serialize)]
 pub struct BakeReport {
@@ -67,7 +238,46 @@ pub struct BakeReport {
     pub voxels: VoxelStats,
     pub form_factors: FormFactorStats,
     pub transfer: TransferStats,
+    pub reorder: ReorderStats,
+    pub codec: CodecSummary,
+    pub mesh_map: MeshMapStats,
+    /// The bake file written, if any.
+    pub output: Option<PathBuf>,
     pub stages: Vec<StageTime>,
+}
+
+/// The deterministic part of a bake's report, stored in the file's `INFO`
+/// section and read back by `radiosity info`.
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
+pub struct BakeInfo {
+    /// The program that wrote the file.
+    pub generator: String,
+    pub scene: String,
+    pub triangles: u64,
+    pub vertices: u64,
+    pub voxel_size: f64,
+    /// Patches in the matrix (those that see something).
+    pub patches: u64,
+    /// `k` or `"inf"`.
+    pub bounces: serde_json::Value,
+    pub grey: bool,
+    pub spectral_bound: f64,
+    pub reorder: String,
+    pub codec: String,
+    pub chosen_by: String,
+    pub h_error: Option<f64>,
+    pub error_lights: u64,
+    pub error_lights_seed: u64,
+    pub mesh_map_fallbacks: u64,
+    pub mesh_map_unmapped: u64,
+}
+
+/// `k` or `"inf"`, as `info --json` reports bounces.
+pub fn bounces_json(b: Bounces) -> serde_json::Value {
+    match b {
+        Bounces::K(k) => serde_json::Value::from(k),
+        Bounces::Infinite => serde_json::Value::from("inf"),
+    }
 }
 
 /// The result of a bake.
@@ -76,6 +286,11 @@ pub struct BakeOutput {
     pub patches: Vec<Patch>,
     pub form_factors: FormFactors,
     pub transfer: Transfer,
+    /// The reordering: row and column `r` of `encoded` hold patch `order[r]`.
+    pub permutation: Permutation,
+    pub encoded: Encoded,
+    /// The bake file (also written when `output` was given).
+    pub file: BakeFile,
     pub report: BakeReport,
 }
 
@@ -109,10 +324,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         ComputeChoice::OpenCl(sel) => Some(Gpu::new(sel).context("opening the OpenCL device")?),
         ComputeChoice::CpuReference => None,
     };
-    let backend = match &gpu {
-        Some(g) => Backend::OpenCl(g),
-        None => Backend::Cpu,
-    };
+    let backend = backend_of(&gpu);
     let device = match &gpu {
         Some(g) => format!(
             "{} ({}, {})",
@@ -179,6 +391,129 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         seconds: t.elapsed().as_secs_f64(),
     });
 
+    // Stage 5: reorder rows and columns (the same permutation).
+    let n = ff.n;
+    let method = config.reorder.unwrap_or(ReorderMethod::default_for(n));
+    progress(&format!("reordering {n} patches ({method})"));
+    let t = Instant::now();
+    let t_ref: [&[f32]; 3] = [tr.channel(0), tr.channel(1), tr.channel(2)];
+    let (perm, reorder_stats) =
+        reorder::reorder_with_stats(method, t_ref, n, &patches, backend_of(&gpu))?;
+    let permuted: Vec<Vec<f32>> = tr
+        .channels
+        .iter()
+        .map(|c| perm.apply_symmetric(c, n))
+        .collect();
+    let tp: [&[f32]; 3] = std::array::from_fn(|c| permuted[c.min(permuted.len() - 1)].as_slice());
+    stages.push(StageTime {
+        stage: "reorder",
+        seconds: t.elapsed().as_secs_f64(),
+    });
+
+    // Stage 6: encode, measured against the exact matrix over seeded lights.
+    let t = Instant::now();
+    let b0_samples: Vec<[Vec<f32>; 3]> = if config.error_lights > 0 {
+        progress(&format!(
+            "direct light from {} seeded random lights (for the compression error)",
+            config.error_lights
+        ));
+        error_samples(&scene, &patches, config.error_lights)
+            .iter()
+            .map(|b| std::array::from_fn(|c| perm.apply_vec(&b[c])))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let (encoded, h_error, chosen_by) = match config.codec {
+        CodecChoice::Fixed(kind) => {
+            progress(&format!("encoding with {kind}"));
+            let e = codec::encode(kind, tp, n)?;
+            let err = (!b0_samples.is_empty()).then(|| {
+                let reference = exact_h(tp, n, &b0_samples);
+                codec::h_error(&e, &reference, &b0_samples)
+            });
+            (e, err, "fixed".to_string())
+        }
+        CodecChoice::MaxError(max) => {
+            progress(&format!(
+                "choosing the cheapest codec with H error ≤ {max} ({} candidates)",
+                codec::default_candidates().len()
+            ));
+            let (_, e, err) = codec::choose_with(
+                tp,
+                n,
+                &b0_samples,
+                max,
+                &[],
+                &mut |kind, err, bpe| {
+                    progress(&format!(
+                        "  {kind}: H error {:.3} %, {bpe:.4} bytes/entry",
+                        100.0 * err
+                    ))
+                },
+            )?;
+            (e, Some(err), format!("max-error {max}"))
+        }
+    };
+    let summary = CodecSummary::of(&encoded, chosen_by, h_error, b0_samples.len());
+    stages.push(StageTime {
+        stage: "encode",
+        seconds: t.elapsed().as_secs_f64(),
+    });
+
+    // Stage 7: the mesh-to-patch map (indices in matrix order, before
+    // reordering, as the file's patches).
+    progress("mesh-to-patch map");
+    let t = Instant::now();
+    let mut patch_index_of = vec![None; vox.patches.len()];
+    for (m, &v) in ff.kept.iter().enumerate() {
+        patch_index_of[v] = Some(m as u32);
+    }
+    let map = mesh_map::build(&scene, &vox, &patch_index_of)?;
+    stages.push(StageTime {
+        stage: "mesh map",
+        seconds: t.elapsed().as_secs_f64(),
+    });
+
+    // Stage 8: the bake file.
+    let info = BakeInfo {
+        generator: format!("radiosity {}", env!("CARGO_PKG_VERSION")),
+        scene: config.scene.display().to_string(),
+        triangles: scene.triangles.len() as u64,
+        vertices: scene.positions.len() as u64,
+        voxel_size: vox.stats.voxel_size,
+        patches: n as u64,
+        bounces: bounces_json(config.transfer.bounces),
+        grey: tr.grey,
+        spectral_bound: tr.stats.spectral_bound,
+        reorder: method.name(),
+        codec: encoded.kind.name(),
+        chosen_by: summary.chosen_by.clone(),
+        h_error,
+        error_lights: b0_samples.len() as u64,
+        error_lights_seed: ERROR_LIGHTS_SEED,
+        mesh_map_fallbacks: map.stats.fallbacks,
+        mesh_map_unmapped: map.stats.unmapped,
+    };
+    let file = BakeFile {
+        options_json: serde_json::to_string(config).expect("options serialize"),
+        scene_hash: SceneHash::of_scene(&scene)?,
+        patches: patches.iter().map(PatchRecord::from).collect(),
+        permutation: perm.order.clone(),
+        codec: encoded.to_blob(),
+        mesh_map: map.entries.clone(),
+        info_json: serde_json::to_string(&info).expect("info serializes"),
+    };
+    if let Some(out) = &config.output {
+        progress(&format!("writing {}", out.display()));
+        let t = Instant::now();
+        bakefile::write(out, &file)?;
+        stages.push(StageTime {
+            stage: "write",
+            seconds: t.elapsed().as_secs_f64(),
+        });
+    }
+
     if let Some(dir) = &config.export {
         progress(&format!("exporting to {}", dir.display()));
         let t = Instant::now();
@@ -191,6 +526,16 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
             &tr,
             &albedo,
         )?;
+        // The matrix as the run time sees it, in the order of patches.csv.
+        let inverse = Permutation::from_order(perm.inverse.clone())?;
+        let decoded = encoded.decode();
+        let mut flat = Vec::with_capacity(3 * n * n);
+        for c in &decoded {
+            flat.extend_from_slice(&inverse.apply_symmetric(c, n));
+        }
+        let path = dir.join("T_decoded.npy");
+        npy::write_f32(&path, &[3, n, n], &flat)
+            .with_context(|| format!("writing {}", path.display()))?;
         stages.push(StageTime {
             stage: "export",
             seconds: t.elapsed().as_secs_f64(),
@@ -204,12 +549,51 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
             voxels: vox.stats,
             form_factors: ff.stats.clone(),
             transfer: tr.stats.clone(),
+            reorder: reorder_stats,
+            codec: summary,
+            mesh_map: map.stats,
+            output: config.output.clone(),
             stages,
         },
         patches,
         form_factors: ff,
         transfer: tr,
+        permutation: perm,
+        encoded,
+        file,
     })
+}
+
+/// The backend of an optional device (`Backend` is not `Copy`).
+fn backend_of(gpu: &Option<Gpu>) -> Backend<'_> {
+    match gpu {
+        Some(g) => Backend::OpenCl(g),
+        None => Backend::Cpu,
+    }
+}
+
+/// `B0 = ρ ∘ D + E` (f32, per channel) for `count` seeded random lights
+/// ([`direct::random_lights`] with [`ERROR_LIGHTS_SEED`]), direct light with
+/// shadows on the CPU, for the patches in matrix order.
+pub fn error_samples(scene: &scene::Scene, patches: &[Patch], count: usize) -> Vec<[Vec<f32>; 3]> {
+    let lights = direct::random_lights(scene.bounds(), count, ERROR_LIGHTS_SEED);
+    let dl = direct::DirectLight::new(scene);
+    lights
+        .iter()
+        .map(|l| {
+            let d = dl.irradiance(patches, std::slice::from_ref(l));
+            let b0 = direct::exitance(patches, &d);
+            std::array::from_fn(|c| b0.iter().map(|b| b[c] as f32).collect())
+        })
+        .collect()
+}
+
+/// The exact `T · B0` in f64 for every sample and channel.
+fn exact_h(t: [&[f32]; 3], n: usize, samples: &[[Vec<f32>; 3]]) -> Vec<[Vec<f64>; 3]> {
+    samples
+        .iter()
+        .map(|b| std::array::from_fn(|c| codec::mat_vec(t[c], n, &b[c])))
+        .collect()
 }
 
 /// Writes the inspection files: `patches.csv` and `patches.png` (the kept
@@ -351,10 +735,185 @@ impl std::fmt::Display for BakeReport {
         )?;
         writeln!(f, "{}", self.form_factors)?;
         writeln!(f, "{}", self.transfer)?;
-        write!(f, "stages:")?;
+        let r = &self.reorder;
+        writeln!(
+            f,
+            "reorder: {}, {:.3} s; mean distance between consecutive rows {:.4e} -> {:.4e}",
+            r.method, r.seconds, r.adjacent_distance_before, r.adjacent_distance_after
+        )?;
+        writeln!(f, "{}", self.codec)?;
+        let m = &self.mesh_map;
+        writeln!(
+            f,
+            "mesh map: {} vertices, {:.2} patches each on average; {} from a widened search, \
+             {} fallbacks ({} blocked by walls), {} unmapped; {:.3} s",
+            m.vertices, m.mean_patches, m.widened, m.fallbacks, m.fallbacks_blocked, m.unmapped,
+            m.seconds
+        )?;
+        writeln!(f)?;
+        writeln!(f, "summary")?;
+        writeln!(
+            f,
+            "  n = {} patches, {} bounces, {} reordering, codec {}",
+            self.transfer.n, self.transfer.bounces, r.method, self.codec.codec
+        )?;
+        let total: f64 = self.stages.iter().map(|s| s.seconds).sum();
+        write!(f, "  time per stage:")?;
         for s in &self.stages {
-            write!(f, " {} {:.3} s;", s.stage, s.seconds)?;
+            write!(f, " {} {:.2} s;", s.stage, s.seconds)?;
         }
-        writeln!(f)
+        writeln!(f, " total {total:.2} s")?;
+        writeln!(
+            f,
+            "  bytes per matrix entry: dense {:.4}, sparse {:.4}, total {:.4} (all 3 channels, \
+             index included)",
+            self.codec.bytes_per_entry_dense,
+            self.codec.bytes_per_entry_sparse,
+            self.codec.bytes_per_entry
+        )?;
+        writeln!(
+            f,
+            "  tiles skipped: {:.1} %",
+            100.0 * self.codec.zero_tile_fraction
+        )?;
+        match self.codec.h_error {
+            Some(e) => writeln!(
+                f,
+                "  compression error: {:.3} % relative RMS of H over {} random lights",
+                100.0 * e,
+                self.codec.error_lights
+            )?,
+            None => writeln!(f, "  compression error: not measured")?,
+        }
+        match &self.output {
+            Some(p) => writeln!(f, "  wrote {}", p.display()),
+            None => writeln!(f, "  no bake file written (give -o OUT.rad)"),
+        }
+    }
+}
+
+/// What `radiosity info OUT.rad` reports: the bake's own report from the
+/// file's `INFO` section, with the sizes recomputed from the codec sections
+/// (which are decoded and validated, so a file `info` accepts is one the
+/// run time can use).
+#[derive(Clone, Debug, Serialize)]
+pub struct FileSummary {
+    pub file: PathBuf,
+    pub bytes_file: u64,
+    pub format_version: u32,
+    pub patches: u64,
+    /// `k` or `"inf"`.
+    pub bounces: serde_json::Value,
+    pub reorder: String,
+    pub codec: String,
+    pub bytes_per_entry: f64,
+    pub bytes_dense: u64,
+    pub bytes_sparse: u64,
+    pub bytes_index: u64,
+    pub zero_tile_fraction: f64,
+    /// Relative RMS error of `H` measured at bake time.
+    pub h_error: Option<f64>,
+    pub error_lights: u64,
+    pub mesh_map_vertices: u64,
+    pub scene: String,
+    /// Whether the scene files still hash as they did at bake time:
+    /// `"unchanged"`, `"changed: obj, mtl"`, or why it could not be checked.
+    pub scene_status: String,
+    pub info: BakeInfo,
+}
+
+/// Reads, validates and summarises the bake file at `path`.
+pub fn describe(path: &Path) -> anyhow::Result<FileSummary> {
+    let bytes_file = std::fs::metadata(path)
+        .with_context(|| format!("reading {}", path.display()))?
+        .len();
+    let file = bakefile::read(path)?;
+    let encoded = Encoded::from_blob(&file.codec)
+        .with_context(|| format!("{}: the compressed matrix is invalid", path.display()))?;
+    let info: BakeInfo = serde_json::from_str(&file.info_json).with_context(|| {
+        format!(
+            "{}: section INFO is not a bake report of this version",
+            path.display()
+        )
+    })?;
+    let scene_path = PathBuf::from(&info.scene);
+    let scene_status = match scene::load(&scene_path) {
+        Err(e) => format!("not checked: {e}"),
+        Ok(s) => match SceneHash::of_scene(&s) {
+            Err(e) => format!("not checked: {e}"),
+            Ok(h) => {
+                let d = file.scene_hash.differences(&h);
+                if d.is_empty() {
+                    "unchanged".into()
+                } else {
+                    format!("changed since the bake: {}", d.join(", "))
+                }
+            }
+        },
+    };
+    let codec = CodecSummary::of(&encoded, info.chosen_by.clone(), info.h_error, 0);
+    Ok(FileSummary {
+        file: path.to_path_buf(),
+        bytes_file,
+        format_version: bakefile::FORMAT_VERSION,
+        patches: file.patches.len() as u64,
+        bounces: info.bounces.clone(),
+        reorder: info.reorder.clone(),
+        codec: codec.codec,
+        bytes_per_entry: codec.bytes_per_entry,
+        bytes_dense: codec.bytes_dense,
+        bytes_sparse: codec.bytes_sparse,
+        bytes_index: codec.bytes_index,
+        zero_tile_fraction: codec.zero_tile_fraction,
+        h_error: info.h_error,
+        error_lights: info.error_lights,
+        mesh_map_vertices: file.mesh_map.len() as u64,
+        scene: info.scene.clone(),
+        scene_status,
+        info,
+    })
+}
+
+impl std::fmt::Display for FileSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "{}: radiosity bake, format v{}, {} bytes",
+            self.file.display(),
+            self.format_version,
+            self.bytes_file
+        )?;
+        writeln!(f, "scene: {} ({})", self.scene, self.scene_status)?;
+        writeln!(
+            f,
+            "patches: {}; bounces: {}; reorder: {}",
+            self.patches, self.bounces, self.reorder
+        )?;
+        let entries = (self.patches * self.patches).max(1) as f64;
+        writeln!(
+            f,
+            "codec: {}; bytes per matrix entry {:.4} (dense {:.4}, sparse {:.4}, index {:.4}); \
+             zero tiles skipped {:.1} %",
+            self.codec,
+            self.bytes_per_entry,
+            self.bytes_dense as f64 / entries,
+            self.bytes_sparse as f64 / entries,
+            self.bytes_index as f64 / entries,
+            100.0 * self.zero_tile_fraction
+        )?;
+        match self.h_error {
+            Some(e) => writeln!(
+                f,
+                "compression error at bake time: {:.3} % relative RMS of H over {} random lights",
+                100.0 * e,
+                self.error_lights
+            )?,
+            None => writeln!(f, "compression error: not measured at bake time")?,
+        }
+        writeln!(
+            f,
+            "mesh map: {} vertices ({} fallbacks, {} unmapped)",
+            self.mesh_map_vertices, self.info.mesh_map_fallbacks, self.info.mesh_map_unmapped
+        )
     }
 }

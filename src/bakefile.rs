@@ -282,6 +282,16 @@ pub enum BakeFileError {
     },
 }
 
+/// Whether `path` starts with the bake file magic (false when it cannot be
+/// read: the caller's own open then reports why).
+pub fn is_bake_file(path: &Path) -> bool {
+    let mut head = [0u8; 8];
+    File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok()
+        && head == MAGIC
+}
+
 /// Name used in messages for bytes that did not come from a named file.
 pub const IN_MEMORY: &str = "(in-memory bake file)";
 

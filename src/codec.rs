@@ -344,6 +344,34 @@ impl CodecKind {
         Ok(())
     }
 
+    /// The same setting with another top fraction: an error for the
+    /// formats without a sparse part.
+    pub fn with_top_fraction(self, f: f64) -> Result<CodecKind, BakeError> {
+        let kind = match self {
+            CodecKind::Bc1Log {
+                log_range, sparse, ..
+            } => CodecKind::Bc1Log {
+                top_fraction: f,
+                log_range,
+                sparse,
+            },
+            CodecKind::Bc4Log {
+                log_range, sparse, ..
+            } => CodecKind::Bc4Log {
+                top_fraction: f,
+                log_range,
+                sparse,
+            },
+            other => {
+                return Err(BakeError::Options(format!(
+                    "--top-fraction applies to the bc1 and bc4 codecs, not {other}"
+                )))
+            }
+        };
+        kind.validate()?;
+        Ok(kind)
+    }
+
     /// The (top fraction, log range, sparse precision) of the log formats.
     fn log_params(&self) -> Option<(f64, f32, SparseValues)> {
         match *self {
@@ -450,7 +478,7 @@ impl Sparse {
 }
 
 /// Counts and time of one encoding: what was skipped, flushed or re-fitted.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize)]
 pub struct EncodeStats {
     /// Wall-clock seconds of [`encode`].
     pub seconds: f64,
@@ -1154,14 +1182,7 @@ pub fn encode(kind: CodecKind, t: [&[f32]; 3], n: usize) -> Result<Encoded, Bake
     }
     let distinct = reorder::distinct_channels(t);
     let grey = distinct.len() == 1;
-    let format = match kind {
-        CodecKind::Bc1Log { .. } if grey => DenseFormat::Bc4,
-        CodecKind::Bc1Log { .. } => DenseFormat::Bc1,
-        CodecKind::Bc4Log { .. } => DenseFormat::Bc4,
-        CodecKind::Bc6h => DenseFormat::Bc6h,
-        CodecKind::F16 => DenseFormat::F16,
-        CodecKind::F32 => DenseFormat::F32,
-    };
+    let format = DenseFormat::of(kind, distinct.len());
     // BC6H always stores RGB; the others store the distinct channels.
     let stored: Vec<&[f32]> = if format == DenseFormat::Bc6h {
         t.to_vec()
@@ -2053,6 +2074,19 @@ pub fn choose(
     max_error: f64,
     candidates: &[CodecKind],
 ) -> Result<(CodecKind, Encoded, f64), BakeError> {
+    choose_with(t, n, b0_samples, max_error, candidates, &mut |_, _, _| {})
+}
+
+/// [`choose`], calling `on_candidate(setting, H error, bytes per entry)`
+/// as each candidate is measured (for progress output and reports).
+pub fn choose_with(
+    t: [&[f32]; 3],
+    n: usize,
+    b0_samples: &[[Vec<f32>; 3]],
+    max_error: f64,
+    candidates: &[CodecKind],
+    on_candidate: &mut dyn FnMut(CodecKind, f64, f64),
+) -> Result<(CodecKind, Encoded, f64), BakeError> {
     if !(max_error >= 0.0) {
         return Err(BakeError::Options(format!(
             "--max-error must be a non-negative number, got {max_error}"
@@ -2088,6 +2122,7 @@ pub fn choose(
     for &kind in candidates {
         let e = encode(kind, t, n)?;
         let err = h_error(&e, &reference, b0_samples);
+        on_candidate(kind, err, e.bytes_per_entry());
         tried.push(format!(
             "{kind}: {err:.3e} at {:.3} B/entry",
             e.bytes_per_entry()
@@ -2246,6 +2281,375 @@ pub fn report_table(rows: &[ReportRow]) -> String {
         );
     }
     s
+}
+
+// ---------------------------------------------------------------------------
+// Serialization into the bake file's codec sections
+
+/// The codec sections of a bake file (`bakefile::CodecBlob`): how an
+/// [`Encoded`] matrix is laid out in `CDSC`, `CPRM`, `SCAL`, `DENS`, `TIDX`
+/// and `SPRS`. All integers are little-endian.
+///
+/// - `CDSC`: `kind` is the dense format ([`DenseFormat::code`]: 1 BC1,
+///   2 BC4, 3 BC6H, 4 F16, 5 F32), `n` the patch count, `tile_size` the
+///   tile edge [`TILE`].
+/// - `CPRM`: JSON `{"codec": NAME, "stats": {..}}`, NAME as
+///   [`CodecKind::name`] writes it (read back with [`CodecKind::parse`]);
+///   the encode statistics are informative.
+/// - `SCAL`: [`Encoded::scale`].
+/// - `DENS`: [`Encoded::dense`], the stored tiles.
+/// - `TIDX`: a 20-byte header (`channels u32`, `image_size u32`,
+///   `tiles_per_side u32`, `log_range f32`, stored tiles `m u32`), then
+///   `row_start` (`tiles_per_side + 1` × u32), `offsets` (m × u32) and
+///   `cols` (m × u16).
+/// - `SPRS`: a 24-byte header (`precision u32`: 0 none, 1 f32, 2 f16;
+///   `col_bytes u32`: 2 or 4; positions `m u32`; the f16 scales 3 × f32),
+///   then, when `m > 0` or precision is not 0, `row_ptr` (n + 1 × u32),
+///   `cols` (m × u16 or u32) and the values (m × channels, f32, or f16 bit
+///   patterns of value × scale).
+///
+/// [`Encoded::from_blob`] checks every length against the bytes present
+/// before reading, then runs [`Encoded::check`] and rejects non-finite or
+/// negative values, so a corrupt section is an error, never a panic or a
+/// NaN at run time.
+pub mod layout {
+    /// Bytes of the `TIDX` header.
+    pub const TILE_INDEX_HEADER: usize = 20;
+    /// Bytes of the `SPRS` header.
+    pub const SPARSE_HEADER: usize = 24;
+}
+
+impl DenseFormat {
+    /// The format's code in the bake file's codec descriptor.
+    pub fn code(self) -> u32 {
+        match self {
+            DenseFormat::Bc1 => 1,
+            DenseFormat::Bc4 => 2,
+            DenseFormat::Bc6h => 3,
+            DenseFormat::F16 => 4,
+            DenseFormat::F32 => 5,
+        }
+    }
+
+    /// The format with code `c`.
+    pub fn from_code(c: u32) -> Option<DenseFormat> {
+        Some(match c {
+            1 => DenseFormat::Bc1,
+            2 => DenseFormat::Bc4,
+            3 => DenseFormat::Bc6h,
+            4 => DenseFormat::F16,
+            5 => DenseFormat::F32,
+            _ => return None,
+        })
+    }
+
+    /// The dense format [`encode`] uses for `kind` with `channels` stored
+    /// channels.
+    fn of(kind: CodecKind, channels: usize) -> DenseFormat {
+        match kind {
+            CodecKind::Bc1Log { .. } if channels == 1 => DenseFormat::Bc4,
+            CodecKind::Bc1Log { .. } => DenseFormat::Bc1,
+            CodecKind::Bc4Log { .. } => DenseFormat::Bc4,
+            CodecKind::Bc6h => DenseFormat::Bc6h,
+            CodecKind::F16 => DenseFormat::F16,
+            CodecKind::F32 => DenseFormat::F32,
+        }
+    }
+}
+
+/// A little-endian reader over one section that reports, instead of
+/// panicking, when the bytes run out.
+struct Cursor<'a> {
+    bytes: &'a [u8],
+    at: usize,
+    section: &'static str,
+}
+
+impl<'a> Cursor<'a> {
+    fn new(bytes: &'a [u8], section: &'static str) -> Cursor<'a> {
+        Cursor {
+            bytes,
+            at: 0,
+            section,
+        }
+    }
+
+    fn err(&self, m: String) -> BakeError {
+        BakeError::Stage {
+            stage: STAGE,
+            message: format!("codec section {}: {m}", self.section),
+        }
+    }
+
+    /// The next `count` items of `size` bytes, after checking they exist.
+    fn take(&mut self, count: usize, size: usize, what: &str) -> Result<&'a [u8], BakeError> {
+        let len = count
+            .checked_mul(size)
+            .filter(|&l| l <= self.bytes.len() - self.at)
+            .ok_or_else(|| {
+                self.err(format!(
+                    "{what}: {count} × {size} bytes needed at byte {}, {} left",
+                    self.at,
+                    self.bytes.len() - self.at
+                ))
+            })?;
+        let s = &self.bytes[self.at..self.at + len];
+        self.at += len;
+        Ok(s)
+    }
+
+    fn u32(&mut self, what: &str) -> Result<u32, BakeError> {
+        Ok(u32::from_le_bytes(self.take(1, 4, what)?.try_into().unwrap()))
+    }
+
+    fn u32s(&mut self, count: usize, what: &str) -> Result<Vec<u32>, BakeError> {
+        Ok(self
+            .take(count, 4, what)?
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
+            .collect())
+    }
+
+    fn u16s(&mut self, count: usize, what: &str) -> Result<Vec<u16>, BakeError> {
+        Ok(self
+            .take(count, 2, what)?
+            .chunks_exact(2)
+            .map(|c| u16::from_le_bytes(c.try_into().unwrap()))
+            .collect())
+    }
+
+    fn finish(&self) -> Result<(), BakeError> {
+        if self.at == self.bytes.len() {
+            Ok(())
+        } else {
+            Err(self.err(format!(
+                "{} trailing bytes after byte {}",
+                self.bytes.len() - self.at,
+                self.at
+            )))
+        }
+    }
+}
+
+fn put_u32s(out: &mut Vec<u8>, v: impl IntoIterator<Item = u32>) {
+    for x in v {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+}
+
+/// The codec parameters stored in `CPRM`.
+#[derive(Serialize, serde::Deserialize)]
+struct Params {
+    codec: String,
+    #[serde(default)]
+    stats: EncodeStats,
+}
+
+impl Encoded {
+    /// The bake file's codec sections for this matrix ([`layout`]).
+    pub fn to_blob(&self) -> crate::bakefile::CodecBlob {
+        let ix = &self.index;
+        let mut tile_index = Vec::with_capacity(
+            layout::TILE_INDEX_HEADER + ix.row_start.len() * 4 + ix.cols.len() * 6,
+        );
+        put_u32s(
+            &mut tile_index,
+            [
+                self.channels as u32,
+                self.image_size as u32,
+                ix.tiles_per_side as u32,
+                self.log_range.to_bits(),
+                ix.cols.len() as u32,
+            ],
+        );
+        put_u32s(&mut tile_index, ix.row_start.iter().copied());
+        put_u32s(&mut tile_index, ix.offsets.iter().copied());
+        for c in &ix.cols {
+            tile_index.extend_from_slice(&c.to_le_bytes());
+        }
+
+        let sp = &self.sparse;
+        let present = !sp.row_ptr.is_empty();
+        let precision = match (present, sp.precision) {
+            (false, _) => 0,
+            (true, SparseValues::F32) => 1,
+            (true, SparseValues::F16) => 2,
+        };
+        let col_bytes: u32 = if self.n <= 1 << 16 { 2 } else { 4 };
+        let mut sparse = Vec::with_capacity(layout::SPARSE_HEADER + self.bytes_sparse());
+        put_u32s(&mut sparse, [precision, col_bytes, sp.cols.len() as u32]);
+        put_u32s(&mut sparse, sp.scale.iter().map(|s| s.to_bits()));
+        if present {
+            put_u32s(&mut sparse, sp.row_ptr.iter().copied());
+            for &c in &sp.cols {
+                if col_bytes == 2 {
+                    sparse.extend_from_slice(&(c as u16).to_le_bytes());
+                } else {
+                    sparse.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+            let ch = self.channels;
+            for (k, &v) in sp.values.iter().enumerate() {
+                match sp.precision {
+                    SparseValues::F32 => sparse.extend_from_slice(&v.to_le_bytes()),
+                    SparseValues::F16 => sparse.extend_from_slice(
+                        &f16::from_f32(v * sp.scale[k % ch]).to_bits().to_le_bytes(),
+                    ),
+                }
+            }
+        }
+        let params = Params {
+            codec: self.kind.name(),
+            stats: self.stats.clone(),
+        };
+        crate::bakefile::CodecBlob {
+            kind: self.format.code(),
+            n: self.n as u32,
+            tile_size: ix.tile as u32,
+            params_json: serde_json::to_string(&params).expect("codec parameters serialize"),
+            scales: self.scale,
+            dense: self.dense.clone(),
+            tile_index,
+            sparse,
+        }
+    }
+
+    /// Reads a matrix back from the bake file's codec sections, validating
+    /// every field ([`layout`]); `to_blob` then `from_blob` gives back an
+    /// equal matrix.
+    pub fn from_blob(blob: &crate::bakefile::CodecBlob) -> Result<Encoded, BakeError> {
+        let bad = |section: &str, m: String| BakeError::Stage {
+            stage: STAGE,
+            message: format!("codec section {section}: {m}"),
+        };
+        let params: Params = serde_json::from_str(&blob.params_json)
+            .map_err(|e| bad("CPRM", format!("codec parameters: {e}")))?;
+        let kind = CodecKind::parse(&params.codec)
+            .map_err(|e| bad("CPRM", format!("codec name: {e}")))?;
+        let format = DenseFormat::from_code(blob.kind)
+            .ok_or_else(|| bad("CDSC", format!("unknown dense format code {}", blob.kind)))?;
+        let n = blob.n as usize;
+
+        let mut c = Cursor::new(&blob.tile_index, "TIDX");
+        let channels = c.u32("channels")? as usize;
+        let image_size = c.u32("image size")? as usize;
+        let tiles_per_side = c.u32("tiles per side")? as usize;
+        let log_range = f32::from_bits(c.u32("log range")?);
+        let stored = c.u32("stored tiles")? as usize;
+        if !matches!(channels, 1 | 3) || format != DenseFormat::of(kind, channels) {
+            return Err(bad(
+                "TIDX",
+                format!("{channels} channels in format {format:?} do not match codec {kind}"),
+            ));
+        }
+        let row_start = c.u32s(tiles_per_side.saturating_add(1), "tile row starts")?;
+        let offsets = c.u32s(stored, "tile offsets")?;
+        let cols = c.u16s(stored, "tile columns")?;
+        c.finish()?;
+
+        let mut c = Cursor::new(&blob.sparse, "SPRS");
+        let precision = c.u32("precision")?;
+        let col_bytes = c.u32("column bytes")?;
+        let entries = c.u32("positions")? as usize;
+        let scale_bits = c.u32s(3, "f16 scales")?;
+        let sparse_scale: [f32; 3] = std::array::from_fn(|k| f32::from_bits(scale_bits[k]));
+        let mut sparse = Sparse {
+            precision: if precision == 2 {
+                SparseValues::F16
+            } else {
+                SparseValues::F32
+            },
+            scale: sparse_scale,
+            ..Sparse::default()
+        };
+        let expect_cols = if n <= 1 << 16 { 2 } else { 4 };
+        if precision > 2 || col_bytes != expect_cols || (precision == 0 && entries != 0) {
+            return Err(bad(
+                "SPRS",
+                format!(
+                    "precision {precision}, {col_bytes}-byte columns and {entries} positions \
+                     are not a valid header for n = {n}"
+                ),
+            ));
+        }
+        if precision != 0 {
+            sparse.row_ptr = c.u32s(n.saturating_add(1), "row pointers")?;
+            sparse.cols = if col_bytes == 2 {
+                c.u16s(entries, "columns")?
+                    .into_iter()
+                    .map(u32::from)
+                    .collect()
+            } else {
+                c.u32s(entries, "columns")?
+            };
+            let count = entries.saturating_mul(channels);
+            sparse.values = if precision == 1 {
+                c.u32s(count, "values")?
+                    .into_iter()
+                    .map(f32::from_bits)
+                    .collect()
+            } else {
+                if sparse_scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+                    return Err(bad("SPRS", format!("f16 scales {sparse_scale:?}")));
+                }
+                c.u16s(count, "values")?
+                    .into_iter()
+                    .enumerate()
+                    .map(|(k, b)| f16::from_bits(b).to_f32() / sparse_scale[k % channels])
+                    .collect()
+            };
+            if let Some(v) = sparse.values.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+                return Err(bad("SPRS", format!("value {v} is not finite and ≥ 0")));
+            }
+        }
+        c.finish()?;
+
+        let e = Encoded {
+            kind,
+            n,
+            channels,
+            format,
+            image_size,
+            scale: blob.scales,
+            log_range,
+            index: TileIndex {
+                tile: blob.tile_size as usize,
+                tiles_per_side,
+                row_start,
+                cols,
+                offsets,
+            },
+            dense: blob.dense.clone(),
+            sparse,
+            stats: params.stats,
+        };
+        e.check()?;
+        if e.scale.iter().any(|s| *s < 0.0) || e.log_range < 0.0 {
+            return Err(bad(
+                "SCAL",
+                format!("negative scale or log range ({:?}, {})", e.scale, e.log_range),
+            ));
+        }
+        // Plain formats are values already: a non-finite or negative one is
+        // corruption the checksums did not catch (a hostile file).
+        let bad_value = match format {
+            DenseFormat::F32 => e
+                .dense
+                .chunks_exact(4)
+                .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+                .find(|v| !(v.is_finite() && *v >= 0.0)),
+            DenseFormat::F16 => e
+                .dense
+                .chunks_exact(2)
+                .map(|b| f16::from_le_bytes(b.try_into().unwrap()).to_f32())
+                .find(|v| !(v.is_finite() && *v >= 0.0)),
+            _ => None,
+        };
+        if let Some(v) = bad_value {
+            return Err(bad("DENS", format!("value {v} is not finite and ≥ 0")));
+        }
+        Ok(e)
+    }
 }
 
 /// Seeded synthetic transfer matrices with the structure of real ones, for

@@ -1,8 +1,9 @@
 //! Tests of the compressed transfer matrix (src/codec.rs): every codec's
 //! round trip against stated bounds, the run-time gather against
 //! decode-then-multiply, zero handling, tiles, sizes, determinism, the
-//! choice under an error bound, and the report. The exploratory tests at
-//! the end (`--ignored`) print the measurements quoted in docs.
+//! choice under an error bound, the report, and the serialization into
+//! the bake file's codec sections (round trip and rejection of corrupt
+//! sections).
 
 use radiosity::codec::{self, synthetic, CodecKind, DenseFormat, Encoded, SparseValues};
 use radiosity::reorder::{self, ReorderMethod};
@@ -648,4 +649,165 @@ fn report_lists_every_method_and_codec() {
     assert_eq!(table.lines().count(), 2 + 6);
     assert!(table.contains("greedy:2") && table.contains("hilbert"));
     serde_json::to_string(&rows).unwrap();
+}
+
+/// Field-by-field equality of two encodings (statistics aside, which are
+/// informative and hold times).
+fn assert_same_encoding(a: &Encoded, b: &Encoded, what: &str) {
+    assert_eq!(a.kind, b.kind, "{what}: kind");
+    assert_eq!(a.n, b.n, "{what}: n");
+    assert_eq!(a.channels, b.channels, "{what}: channels");
+    assert_eq!(a.format, b.format, "{what}: format");
+    assert_eq!(a.image_size, b.image_size, "{what}: image size");
+    assert_eq!(a.scale.map(f32::to_bits), b.scale.map(f32::to_bits), "{what}: scale");
+    assert_eq!(a.log_range.to_bits(), b.log_range.to_bits(), "{what}: L");
+    assert_eq!(a.index, b.index, "{what}: tile index");
+    assert!(a.dense == b.dense, "{what}: dense bytes");
+    assert_eq!(a.sparse.row_ptr, b.sparse.row_ptr, "{what}: sparse rows");
+    assert_eq!(a.sparse.cols, b.sparse.cols, "{what}: sparse columns");
+    // Bit equality: f16 sparse values must survive value × scale → half →
+    // value exactly (the scale is a power of two).
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&a.sparse.values), bits(&b.sparse.values), "{what}: sparse values");
+}
+
+/// Every variant, grey and coloured, with and without a sparse part, at a
+/// size that is not a multiple of 4 or of the tile: `to_blob` then
+/// `from_blob` (also through a whole bake file's bytes) gives back the same
+/// encoding, so the run time gathers the same `H` bit for bit.
+#[test]
+fn blobs_round_trip_every_variant() {
+    let (patches, t) = room(7, 1); // n = 6·49 + 6 = 300
+    let n = patches.len();
+    let grey: [Vec<f32>; 3] = std::array::from_fn(|_| t[1].clone());
+    let b0 = synthetic::point_lights(&patches, 1, 9).remove(0);
+    let kinds = [
+        CodecKind::THESIS,
+        CodecKind::default(),
+        bc1(0.02, codec::LOG_RANGE_AUTO, SparseValues::F16),
+        bc1(0.0, codec::LOG_RANGE_AUTO, SparseValues::F16),
+        bc4(0.02, 12.0),
+        CodecKind::Bc6h,
+        CodecKind::F16,
+        CodecKind::F32,
+    ];
+    for (matrix, label) in [(&t, "colour"), (&grey, "grey")] {
+        for kind in kinds {
+            let what = format!("{kind} ({label})");
+            let e = codec::encode(kind, refs(matrix), n).unwrap();
+            let blob = e.to_blob();
+            let back = Encoded::from_blob(&blob).unwrap();
+            assert_same_encoding(&e, &back, &what);
+            assert_eq!(back.gather(refs(&b0)), e.gather(refs(&b0)), "{what}: H");
+            // The sections' sizes are what bytes_per_entry counts (the
+            // sparse section adds its 24-byte header, the index section
+            // its 20-byte header and the 16 header bytes counted there are
+            // the scales and L).
+            assert_eq!(blob.dense.len(), e.bytes_dense(), "{what}");
+            assert_eq!(
+                blob.sparse.len(),
+                codec::layout::SPARSE_HEADER + e.bytes_sparse(),
+                "{what}"
+            );
+            // Through the container.
+            let bf = radiosity::bakefile::BakeFile {
+                options_json: "{}".into(),
+                info_json: "{}".into(),
+                patches: patches
+                    .iter()
+                    .map(radiosity::bakefile::PatchRecord::from)
+                    .collect(),
+                permutation: (0..n as u32).collect(),
+                codec: blob,
+                ..Default::default()
+            };
+            let bytes = radiosity::bakefile::encode(&bf).unwrap();
+            let read = radiosity::bakefile::parse(&bytes).unwrap();
+            assert_same_encoding(&e, &Encoded::from_blob(&read.codec).unwrap(), &what);
+        }
+    }
+}
+
+/// Corrupt codec sections (with valid checksums: what a hostile or buggy
+/// writer produces) are errors naming the section, never a panic: one test
+/// per field, then every single-byte change and truncation of the index
+/// and sparse sections.
+#[test]
+fn corrupt_codec_sections_are_rejected() {
+    let (_, t) = room(5, 1);
+    let n = t[0].len().isqrt();
+    let e = codec::encode(bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::F16), refs(&t), n).unwrap();
+    let good = e.to_blob();
+    let expect_err = |b: &radiosity::bakefile::CodecBlob, needle: &str, what: &str| {
+        let err = Encoded::from_blob(b).expect_err(what).to_string();
+        assert!(err.contains(needle), "{what}: {err:?} should mention {needle:?}");
+    };
+    let mut b = good.clone();
+    b.kind = 77;
+    expect_err(&b, "CDSC", "unknown format code");
+    let mut b = good.clone();
+    b.kind = DenseFormat::Bc6h.code();
+    expect_err(&b, "TIDX", "format not matching the codec");
+    let mut b = good.clone();
+    b.params_json = r#"{"codec":"jpeg"}"#.into();
+    expect_err(&b, "CPRM", "unknown codec name");
+    let mut b = good.clone();
+    b.params_json = "[1, 2]".into();
+    expect_err(&b, "CPRM", "parameters not an object");
+    let mut b = good.clone();
+    b.tile_index.truncate(b.tile_index.len() - 2);
+    expect_err(&b, "TIDX", "truncated tile index");
+    let mut b = good.clone();
+    b.tile_index.extend_from_slice(&[0, 0]);
+    expect_err(&b, "trailing", "trailing bytes in the tile index");
+    let mut b = good.clone();
+    b.sparse.truncate(b.sparse.len() - 1);
+    expect_err(&b, "SPRS", "truncated sparse part");
+    let mut b = good.clone();
+    b.sparse[0] = 9; // precision
+    expect_err(&b, "SPRS", "unknown sparse precision");
+    let mut b = good.clone();
+    let last = b.sparse.len() - 2;
+    b.sparse[last..].copy_from_slice(&half::f16::NAN.to_bits().to_le_bytes());
+    expect_err(&b, "not finite", "NaN sparse value");
+    let mut b = good.clone();
+    b.dense.truncate(b.dense.len() - 8);
+    expect_err(&b, "invalid encoded matrix", "truncated dense part");
+    let mut b = good.clone();
+    b.n += 1;
+    assert!(Encoded::from_blob(&b).is_err(), "wrong n");
+    // Plain formats: a NaN among the dense values.
+    let f = codec::encode(CodecKind::F32, refs(&t), n).unwrap();
+    let mut b = f.to_blob();
+    b.dense[4..8].copy_from_slice(&f32::NAN.to_le_bytes());
+    expect_err(&b, "DENS", "NaN in f32 dense data");
+
+    // Every byte of the index and sparse sections changed: an error, or an
+    // encoding that passes `check` (a changed value or offset can be valid)
+    // and gathers finite values without panicking. Every truncation is an
+    // error: each section's length is fully determined by its header.
+    let b0 = [vec![1.0f32; n], vec![0.5; n], vec![0.25; n]];
+    fn section(b: &mut radiosity::bakefile::CodecBlob, s: usize) -> &mut Vec<u8> {
+        if s == 0 {
+            &mut b.tile_index
+        } else {
+            &mut b.sparse
+        }
+    }
+    for s in 0..2 {
+        let len = section(&mut good.clone(), s).len();
+        for k in 0..len {
+            let mut b = good.clone();
+            section(&mut b, s).truncate(k);
+            assert!(Encoded::from_blob(&b).is_err(), "section {s} cut at {k}");
+            for delta in [0x01u8, 0x80] {
+                let mut b = good.clone();
+                section(&mut b, s)[k] ^= delta;
+                if let Ok(e) = Encoded::from_blob(&b) {
+                    let h = e.gather(refs(&b0));
+                    assert!(h.iter().flatten().all(|x| x.is_finite()));
+                }
+            }
+        }
+    }
 }
