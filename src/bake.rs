@@ -439,19 +439,13 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
                 "choosing the cheapest codec with H error ≤ {max} ({} candidates)",
                 codec::default_candidates().len()
             ));
-            let (_, e, err) = codec::choose_with(
-                tp,
-                n,
-                &b0_samples,
-                max,
-                &[],
-                &mut |kind, err, bpe| {
+            let (_, e, err) =
+                codec::choose_with(tp, n, &b0_samples, max, &[], &mut |kind, err, bpe| {
                     progress(&format!(
                         "  {kind}: H error {:.3} %, {bpe:.4} bytes/entry",
                         100.0 * err
                     ))
-                },
-            )?;
+                })?;
             (e, Some(err), format!("max-error {max}"))
         }
     };
@@ -747,7 +741,12 @@ impl std::fmt::Display for BakeReport {
             f,
             "mesh map: {} vertices, {:.2} patches each on average; {} from a widened search, \
              {} fallbacks ({} blocked by walls), {} unmapped; {:.3} s",
-            m.vertices, m.mean_patches, m.widened, m.fallbacks, m.fallbacks_blocked, m.unmapped,
+            m.vertices,
+            m.mean_patches,
+            m.widened,
+            m.fallbacks,
+            m.fallbacks_blocked,
+            m.unmapped,
             m.seconds
         )?;
         writeln!(f)?;

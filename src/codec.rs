@@ -2399,7 +2399,9 @@ impl<'a> Cursor<'a> {
     }
 
     fn u32(&mut self, what: &str) -> Result<u32, BakeError> {
-        Ok(u32::from_le_bytes(self.take(1, 4, what)?.try_into().unwrap()))
+        Ok(u32::from_le_bytes(
+            self.take(1, 4, what)?.try_into().unwrap(),
+        ))
     }
 
     fn u32s(&mut self, count: usize, what: &str) -> Result<Vec<u32>, BakeError> {
@@ -2524,8 +2526,8 @@ impl Encoded {
         };
         let params: Params = serde_json::from_str(&blob.params_json)
             .map_err(|e| bad("CPRM", format!("codec parameters: {e}")))?;
-        let kind = CodecKind::parse(&params.codec)
-            .map_err(|e| bad("CPRM", format!("codec name: {e}")))?;
+        let kind =
+            CodecKind::parse(&params.codec).map_err(|e| bad("CPRM", format!("codec name: {e}")))?;
         let format = DenseFormat::from_code(blob.kind)
             .ok_or_else(|| bad("CDSC", format!("unknown dense format code {}", blob.kind)))?;
         let n = blob.n as usize;
@@ -2598,7 +2600,11 @@ impl Encoded {
                     .map(|(k, b)| f16::from_bits(b).to_f32() / sparse_scale[k % channels])
                     .collect()
             };
-            if let Some(v) = sparse.values.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+            if let Some(v) = sparse
+                .values
+                .iter()
+                .find(|v| !(v.is_finite() && **v >= 0.0))
+            {
                 return Err(bad("SPRS", format!("value {v} is not finite and ≥ 0")));
             }
         }
@@ -2627,7 +2633,10 @@ impl Encoded {
         if e.scale.iter().any(|s| *s < 0.0) || e.log_range < 0.0 {
             return Err(bad(
                 "SCAL",
-                format!("negative scale or log range ({:?}, {})", e.scale, e.log_range),
+                format!(
+                    "negative scale or log range ({:?}, {})",
+                    e.scale, e.log_range
+                ),
             ));
         }
         // Plain formats are values already: a non-finite or negative one is

@@ -659,7 +659,11 @@ fn assert_same_encoding(a: &Encoded, b: &Encoded, what: &str) {
     assert_eq!(a.channels, b.channels, "{what}: channels");
     assert_eq!(a.format, b.format, "{what}: format");
     assert_eq!(a.image_size, b.image_size, "{what}: image size");
-    assert_eq!(a.scale.map(f32::to_bits), b.scale.map(f32::to_bits), "{what}: scale");
+    assert_eq!(
+        a.scale.map(f32::to_bits),
+        b.scale.map(f32::to_bits),
+        "{what}: scale"
+    );
     assert_eq!(a.log_range.to_bits(), b.log_range.to_bits(), "{what}: L");
     assert_eq!(a.index, b.index, "{what}: tile index");
     assert!(a.dense == b.dense, "{what}: dense bytes");
@@ -668,7 +672,11 @@ fn assert_same_encoding(a: &Encoded, b: &Encoded, what: &str) {
     // Bit equality: f16 sparse values must survive value × scale → half →
     // value exactly (the scale is a power of two).
     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(&a.sparse.values), bits(&b.sparse.values), "{what}: sparse values");
+    assert_eq!(
+        bits(&a.sparse.values),
+        bits(&b.sparse.values),
+        "{what}: sparse values"
+    );
 }
 
 /// Every variant, grey and coloured, with and without a sparse part, at a
@@ -736,11 +744,19 @@ fn blobs_round_trip_every_variant() {
 fn corrupt_codec_sections_are_rejected() {
     let (_, t) = room(5, 1);
     let n = t[0].len().isqrt();
-    let e = codec::encode(bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::F16), refs(&t), n).unwrap();
+    let e = codec::encode(
+        bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::F16),
+        refs(&t),
+        n,
+    )
+    .unwrap();
     let good = e.to_blob();
     let expect_err = |b: &radiosity::bakefile::CodecBlob, needle: &str, what: &str| {
         let err = Encoded::from_blob(b).expect_err(what).to_string();
-        assert!(err.contains(needle), "{what}: {err:?} should mention {needle:?}");
+        assert!(
+            err.contains(needle),
+            "{what}: {err:?} should mention {needle:?}"
+        );
     };
     let mut b = good.clone();
     b.kind = 77;
