@@ -2295,7 +2295,8 @@ pub fn report_table(rows: &[ReportRow]) -> String {
 ///   tile edge [`TILE`].
 /// - `CPRM`: JSON `{"codec": NAME, "stats": {..}}`, NAME as
 ///   [`CodecKind::name`] writes it (read back with [`CodecKind::parse`]);
-///   the encode statistics are informative.
+///   the encode statistics are informative (without the encode time, so
+///   that the bytes are deterministic).
 /// - `SCAL`: [`Encoded::scale`].
 /// - `DENS`: [`Encoded::dense`], the stored tiles.
 /// - `TIDX`: a 20-byte header (`channels u32`, `image_size u32`,
@@ -2500,9 +2501,14 @@ impl Encoded {
                 }
             }
         }
+        // The encode time is left out: the same matrix must give the same
+        // bytes (bake files are deterministic).
         let params = Params {
             codec: self.kind.name(),
-            stats: self.stats.clone(),
+            stats: EncodeStats {
+                seconds: 0.0,
+                ..self.stats.clone()
+            },
         };
         crate::bakefile::CodecBlob {
             kind: self.format.code(),

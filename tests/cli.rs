@@ -106,15 +106,39 @@ fn bake_reports_counts_and_exports_patches() {
         .collect();
     assert_eq!(
         stages,
-        ["load", "voxelize", "form factors", "transfer", "export"]
+        [
+            "load",
+            "voxelize",
+            "form factors",
+            "transfer",
+            "reorder",
+            "encode",
+            "mesh map",
+            "export"
+        ]
     );
+    assert!(v["output"].is_null(), "no -o, no file");
+    assert!(v["codec"]["bytes_per_entry"].as_f64().unwrap() > 0.0);
     // The matrices, in the order of patches.csv.
     let n = patches as usize;
     let (shape, f) = radiosity::npy::read_f32(&dir.join("F.npy")).unwrap();
     assert_eq!(shape, [n, n]);
     assert!(f.iter().all(|x| x.is_finite() && *x >= 0.0));
-    let (shape, _) = radiosity::npy::read_f32(&dir.join("T.npy")).unwrap();
+    let (shape, t) = radiosity::npy::read_f32(&dir.join("T.npy")).unwrap();
     assert_eq!(shape, [3, n, n]);
+    // The matrix as the run time sees it: same shape and order as T.npy,
+    // and within the codec's error of it (relative Frobenius error a few
+    // per cent for the default BC1 setting; docs/compression.md).
+    let (shape, td) = radiosity::npy::read_f32(&dir.join("T_decoded.npy")).unwrap();
+    assert_eq!(shape, [3, n, n]);
+    let (d2, r2) = t.iter().zip(&td).fold((0.0, 0.0), |(d, r), (&a, &b)| {
+        (d + (a as f64 - b as f64).powi(2), r + (a as f64).powi(2))
+    });
+    assert!(
+        (d2 / r2).sqrt() < 0.1,
+        "T_decoded is far from T: {}",
+        (d2 / r2).sqrt()
+    );
     let (shape, _) = radiosity::npy::read_f32(&dir.join("albedo.npy")).unwrap();
     assert_eq!(shape, [n, 3]);
     let csv = std::fs::read_to_string(dir.join("patches.csv")).unwrap();
@@ -146,6 +170,105 @@ fn bake_reports_counts_and_exports_patches() {
     );
     // Progress goes to stderr, one line per stage.
     assert!(stderr(&o).contains("[bake] voxelizing"));
+}
+
+/// `bake -o` writes a `.rad` file that `info` describes with the
+/// documented keys; the bounce count is a number or "inf".
+#[test]
+fn bake_writes_a_file_that_info_describes() {
+    let dir = common::temp_dir("cli-rad");
+    let scene = common::bundled("cornell_box");
+    for (bounces, expect) in [
+        ("2", serde_json::json!(2)),
+        ("inf", serde_json::json!("inf")),
+    ] {
+        let out = dir.join(format!("cornell-{bounces}.rad"));
+        let o = radiosity(&[
+            "bake",
+            scene.to_str().unwrap(),
+            "--voxel-size",
+            "80",
+            "--bounces",
+            bounces,
+            "--codec",
+            "bc1:sparse=f16",
+            "--top-fraction",
+            "0.02",
+            "--reorder",
+            "hilbert",
+            "--error-lights",
+            "4",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        // The final summary.
+        for line in [
+            "summary",
+            "bytes per matrix entry",
+            "tiles skipped",
+            "compression error",
+        ] {
+            assert!(
+                stdout(&o).contains(line),
+                "summary lacks {line:?}: {}",
+                stdout(&o)
+            );
+        }
+        let o = radiosity(&["info", out.to_str().unwrap(), "--json"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        for key in [
+            "patches",
+            "bounces",
+            "codec",
+            "bytes_per_entry",
+            "bytes_dense",
+            "bytes_sparse",
+            "zero_tile_fraction",
+        ] {
+            assert!(!v[key].is_null(), "info --json lacks {key}: {v}");
+        }
+        assert_eq!(v["bounces"], expect);
+        assert_eq!(v["codec"], "bc1-log(top=0.02,L=auto,f16)");
+        assert_eq!(v["reorder"], "hilbert");
+        assert_eq!(v["scene_status"], "unchanged");
+        let n = v["patches"].as_f64().unwrap();
+        let total = v["bytes_dense"].as_f64().unwrap()
+            + v["bytes_sparse"].as_f64().unwrap()
+            + v["bytes_index"].as_f64().unwrap();
+        assert!((v["bytes_per_entry"].as_f64().unwrap() - total / (n * n)).abs() < 1e-12);
+        let o = radiosity(&["info", out.to_str().unwrap()]);
+        assert!(stdout(&o).contains("bytes per matrix entry"));
+    }
+    // A damaged file is refused with its name and the damaged section.
+    let path = dir.join("cornell-2.rad");
+    let mut bytes = std::fs::read(&path).unwrap();
+    let k = bytes.len() - 100;
+    bytes[k] ^= 0x40;
+    let bad = dir.join("damaged.rad");
+    std::fs::write(&bad, &bytes).unwrap();
+    let o = radiosity(&["info", bad.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("damaged.rad"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("checksum"), "{}", stderr(&o));
+    // Codec options that do not fit are usage errors with the flag's name.
+    let o = radiosity(&[
+        "bake",
+        scene.to_str().unwrap(),
+        "--codec",
+        "f32",
+        "--top-fraction",
+        "0.1",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("--top-fraction"), "{}", stderr(&o));
+    let o = radiosity(&["bake", scene.to_str().unwrap(), "--codec", "png"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("png"), "{}", stderr(&o));
+    let o = radiosity(&["bake", scene.to_str().unwrap(), "--reorder", "random"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("random"), "{}", stderr(&o));
 }
 
 #[test]
