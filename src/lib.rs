@@ -12,11 +12,20 @@
 //! 2. [`voxelize`]: voxel patches — one per occupied voxel and open axis
 //!    direction, in the mean plane of its geometry, with that geometry's
 //!    projected area (`kernels/voxelize.cl`).
-//! 3. Form factors `F` with visibility (next stage).
-//! 4. The multi-bounce transfer `T_k = Σ_{h=1..k} F (diag(ρ) F)^{h−1}` or
-//!    `T_∞ = F (I − diag(ρ) F)^{−1}`, per colour channel (next stages).
-//! 5. Reordering, BC1 + log codec with an exact sparse top fraction,
-//!    mesh-to-patch map, versioned bake file (next stages).
+//! 3. [`form_factor`]: form factors `F` between patches with visibility
+//!    (`kernels/form_factor.cl`, a BVH of the original triangles, [`bvh`]).
+//! 4. [`transfer`]: the multi-bounce transfer `T_k = Σ_{h=1..k} F (diag(ρ)
+//!    F)^{h−1}` or `T_∞ = F (I − diag(ρ) F)^{−1}` per colour channel, from
+//!    a tiled OpenCL GEMM ([`gemm`], `kernels/gemm.cl`).
+//! 5. [`reorder`]: one symmetric permutation of rows and columns that makes
+//!    neighbouring rows alike (the thesis's greedy chain, or a Hilbert
+//!    curve).
+//! 6. [`codec`]: the compressed matrix — BC1 of log-scaled entries, an
+//!    exact sparse top fraction, all-zero tiles skipped (or BC4, BC6H, f16,
+//!    f32), with its error measured over seeded lights ([`direct`]).
+//! 7. [`mesh_map`]: per mesh vertex, up to four patches and weights, never
+//!    through a wall.
+//! 8. [`bakefile`]: the versioned, checksummed `.rad` file holding all of it.
 //!
 //! Run time (OpenGL 4.3+): shadow maps → direct irradiance `D` on patches →
 //! `H = T · B0` with `B0 = ρ ∘ D + E` → transfer to the mesh → shading.
@@ -34,7 +43,12 @@
 //! - Nothing is silently clamped or dropped: repairs, clamps, slivers and
 //!   covered geometry are counted and reported.
 //! - The bake is deterministic: the same input and options give the same
-//!   result bit for bit (sorted reductions, no atomics on floats).
+//!   result bit for bit (sorted reductions, no atomics on floats), and the
+//!   same `.rad` bytes (no times or dates in the file).
+//! - A `.rad` file is either rejected with an error naming the file and the
+//!   section, or fully valid: the container checks every checksum and
+//!   field, and the codec checks every index, offset and value before the
+//!   run time may read it.
 //! - Albedo components are below 1 ([`scene::ALBEDO_MAX`]), so the
 //!   infinite-bounce series converges.
 //! - Memory is proportional to occupied voxels, never to the grid volume.

@@ -12,6 +12,10 @@
 //!    reaches the table and field validation behind the checksums, where
 //!    the interesting code is.
 //!
+//! A file that parses has its codec sections decoded too
+//! (`codec::Encoded::from_blob`, which must also never panic, and whose
+//! accepted matrices must gather without panicking).
+//!
 //! A file that parses must re-encode (the writer validates with the same
 //! rules, so it must accept what the reader accepted) to bytes that parse
 //! back to the same value. (Not necessarily to the same bytes: the reader
@@ -22,9 +26,10 @@
 
 use libfuzzer_sys::fuzz_target;
 use radiosity::bakefile::{
-    self, crc32, encode, header_checksum, parse, BakeFile, CodecBlob, PatchRecord, SceneHash,
-    ENTRY_LEN, HEADER_LEN,
+    self, crc32, encode, header_checksum, parse, BakeFile, PatchRecord, SceneHash, ENTRY_LEN,
+    HEADER_LEN,
 };
+use radiosity::codec::{self, CodecKind, Encoded};
 use std::sync::OnceLock;
 
 /// A small valid bake file: 3 patches, 4 vertices.
@@ -49,15 +54,16 @@ fn base() -> &'static [u8] {
                 })
                 .collect(),
             permutation: vec![1, 2, 0],
-            codec: CodecBlob {
-                kind: 1,
-                n: 3,
-                tile_size: 32,
-                params_json: "{}".into(),
-                scales: [1.0; 3],
-                dense: vec![1, 2, 3, 4, 5, 6, 7, 8, 9],
-                tile_index: vec![0; 6],
-                sparse: vec![9; 12],
+            // A real encoding (BC1 + log + an f16 sparse part), so that the
+            // codec sections' own validation is reached too.
+            codec: {
+                let t: [Vec<f32>; 3] = std::array::from_fn(|c| {
+                    (0..9).map(|k| ((k * 5 + c) % 7) as f32 * 0.01).collect()
+                });
+                let kind = CodecKind::parse("bc1:top=0.25,sparse=f16").unwrap();
+                codec::encode(kind, [&t[0], &t[1], &t[2]], 3)
+                    .unwrap()
+                    .to_blob()
             },
             mesh_map: vec![
                 [(0, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)],
@@ -116,6 +122,12 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(bf) = parse(&edited) {
         let again = encode(&bf).expect("an accepted file re-encodes");
         assert_eq!(parse(&again).expect("a re-encoded file parses"), bf);
+        // The codec sections: an error, or a matrix the run time can gather
+        // from without panicking.
+        if let Ok(e) = Encoded::from_blob(&bf.codec) {
+            let b0 = vec![1.0f32; e.n];
+            let _ = e.gather([&b0, &b0, &b0]);
+        }
     }
     let _ = bakefile::sections(&edited, "fuzz");
 });
