@@ -4,13 +4,15 @@
 
 use anyhow::{bail, Context as _};
 use clap::{Args, Parser, Subcommand};
-use radiosity::bake::{self, BakeConfig, ComputeChoice};
+use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
+use radiosity::codec::CodecKind;
+use radiosity::reorder::ReorderMethod;
 use radiosity::compute::Gpu;
 use radiosity::compute::{self, DeviceSelection};
 use radiosity::form_factor::FormFactorOptions;
 use radiosity::transfer::{Bounces, StressCase, TransferOptions};
 use radiosity::voxelize::{Backend, Resolution};
-use radiosity::{bench, form_factor, gemm, generate, scene, transfer};
+use radiosity::{bakefile, bench, form_factor, gemm, generate, scene, transfer};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -34,15 +36,17 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Describe a scene (.obj): triangles, materials, bounds, areas, repairs.
+    /// Describe a scene (.obj: triangles, materials, bounds, areas, repairs)
+    /// or a bake file (.rad: patches, bounces, codec, bytes per entry).
     Info {
-        /// The scene file.
+        /// The scene or bake file (told apart by the bake file's magic).
         path: PathBuf,
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
     },
-    /// Bake a scene: load, voxelize, form factors, transfer matrix, report.
+    /// Bake a scene: voxelize, form factors, transfer matrix, reorder,
+    /// compress, mesh-to-patch map, write the .rad file (-o), report.
     Bake(BakeArgs),
     /// Write a bundled scene (OBJ + MTL + camera/lights JSON) into a directory.
     Generate {
@@ -109,6 +113,39 @@ enum BenchCommand {
         #[command(flatten)]
         device: DeviceArgs,
     },
+    /// Compression report (docs/compression.md): every reordering × codec
+    /// on each scene's T_∞, errors of T̃ and of H = T̃·B0 over seeded
+    /// random lights, bytes per entry and times, as Markdown.
+    Compression {
+        /// The scene files (.obj).
+        #[arg(required = true)]
+        scenes: Vec<PathBuf>,
+        /// Target patch counts: one for every scene, or one per scene
+        /// (comma-separated, in the scenes' order).
+        #[arg(long, value_delimiter = ',', default_value = "2000")]
+        patches: Vec<usize>,
+        /// Comma-separated reorderings: none, greedy:PASSES, hilbert.
+        #[arg(long, value_delimiter = ',', default_value = "none,greedy:1,greedy:2,hilbert",
+              value_parser = |s: &str| radiosity::reorder::ReorderMethod::parse(s).map_err(|e| e.to_string()))]
+        reorder: Vec<radiosity::reorder::ReorderMethod>,
+        /// A codec (repeat the flag, or separate with `;`): f32, f16, bc6h,
+        /// bc1/bc4 with options (e.g. `bc1:top=0.02,L=auto,sparse=f16`),
+        /// `thesis` or `default`. Default: the report's eight settings.
+        #[arg(long = "codec", value_delimiter = ';',
+              value_parser = |s: &str| bench::parse_report_codec(s).map_err(|e| e.to_string()))]
+        codecs: Vec<radiosity::codec::CodecKind>,
+        /// Seeded random lights (each one B0 sample).
+        #[arg(long, default_value_t = 64)]
+        lights: usize,
+        /// Seed of the random lights.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Write the Markdown to this file (atomically) instead of stdout.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        #[command(flatten)]
+        device: DeviceArgs,
+    },
 }
 
 #[derive(Args, Clone)]
@@ -122,9 +159,9 @@ struct DeviceArgs {
 struct BakeArgs {
     /// The scene (.obj with its .mtl).
     scene: PathBuf,
-    /// Output bake file (written once the later stages exist; accepted now
-    /// so scripts need not change).
-    #[arg(short, long)]
+    /// Write the bake file (.rad) here (atomically: a temporary file, then
+    /// a rename). Without it the bake runs and reports but writes nothing.
+    #[arg(short, long, value_name = "OUT.rad")]
     output: Option<PathBuf>,
     /// Voxel edge length in scene units.
     #[arg(long, conflicts_with = "patches")]
@@ -142,8 +179,29 @@ struct BakeArgs {
     /// Form-factor visibility rays per patch pair (1..=64, default 4).
     #[arg(long)]
     ff_rays: Option<u32>,
+    /// Reordering before compression: none, greedy[:PASSES] (the thesis's,
+    /// O(n³)), or hilbert (space-filling curve). Default: greedy:2 up to
+    /// 4096 patches, hilbert above.
+    #[arg(long, value_name = "METHOD")]
+    reorder: Option<String>,
+    /// Codec: bc1 (the thesis's: BC1 of log-scaled entries + exact top
+    /// fraction), bc4, bc6h, f16 or f32; bc1/bc4 take options, e.g.
+    /// `bc1:top=0.02,L=auto,sparse=f16`. Default: bc1:top=0.04,L=auto,sparse=f32.
+    #[arg(long, value_name = "CODEC", conflicts_with = "max_error")]
+    codec: Option<String>,
+    /// Fraction of the matrix entries stored exactly (bc1/bc4; default 0.04).
+    #[arg(long, value_name = "F", conflicts_with = "max_error")]
+    top_fraction: Option<f64>,
+    /// Choose the cheapest codec setting whose relative RMS error of H = T·B0
+    /// over the error lights is at most E (e.g. 0.02).
+    #[arg(long, value_name = "E")]
+    max_error: Option<f64>,
+    /// Seeded random lights the compression error is measured over (0: do
+    /// not measure).
+    #[arg(long, value_name = "N", default_value_t = bake::DEFAULT_ERROR_LIGHTS)]
+    error_lights: usize,
     /// Write inspection files (patches.csv, patches.png, F.npy, T.npy,
-    /// albedo.npy) into this directory.
+    /// T_decoded.npy, albedo.npy) into this directory.
     #[arg(long, value_name = "DIR")]
     export: Option<PathBuf>,
     /// Run every stage on the CPU reference instead of OpenCL.
@@ -169,12 +227,6 @@ impl BakeArgs {
         } else {
             ComputeChoice::OpenCl(DeviceSelection::from_flag_or_env(self.device.device)?)
         };
-        if let Some(out) = &self.output {
-            eprintln!(
-                "note: the bake file format comes with a later stage; {} is not written yet",
-                out.display()
-            );
-        }
         let mut form_factor = FormFactorOptions::default();
         if let Some(m) = self.ff_samples {
             form_factor.samples = m;
@@ -186,12 +238,34 @@ impl BakeArgs {
             bounces: self.bounces.unwrap_or_default(),
             ..TransferOptions::default()
         };
+        let codec = match (self.max_error, self.codec, self.top_fraction) {
+            (Some(e), _, _) => CodecChoice::MaxError(e),
+            (None, name, top) => {
+                let mut kind = match name {
+                    Some(n) => CodecKind::parse(&n)?,
+                    None => CodecKind::default(),
+                };
+                if let Some(f) = top {
+                    kind = kind.with_top_fraction(f)?;
+                }
+                CodecChoice::Fixed(kind)
+            }
+        };
+        let reorder = self
+            .reorder
+            .as_deref()
+            .map(ReorderMethod::parse)
+            .transpose()?;
         let config = BakeConfig {
             scene: self.scene,
             resolution,
             compute,
             form_factor,
             transfer,
+            reorder,
+            codec,
+            error_lights: self.error_lights,
+            output: self.output,
             export: self.export,
         };
         config.validate()?;
@@ -249,6 +323,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     );
                 }
                 println!("GL renderer: not part of this build yet (the renderer comes with a later stage)");
+            }
+        }
+        Command::Info { path, json } if bakefile::is_bake_file(&path) => {
+            let summary = bake::describe(&path)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&summary)?);
+            } else {
+                print!("{summary}");
             }
         }
         Command::Info { path, json } => {
@@ -336,6 +418,63 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     .collect();
                 println!("\n## T_inf stress: error against the f64 reference\n");
                 print!("{}", transfer::bench_stress(&cases, &albedos, &backend)?);
+            }
+            BenchCommand::Compression {
+                scenes,
+                patches,
+                reorder,
+                codecs,
+                lights,
+                seed,
+                output,
+                device,
+            } => {
+                let patches = match patches.len() {
+                    1 => vec![patches[0]; scenes.len()],
+                    k if k == scenes.len() => patches,
+                    k => bail!(
+                        "--patches takes one count or one per scene: got {k} for {} scenes",
+                        scenes.len()
+                    ),
+                };
+                if let Some(&p) = patches.iter().find(|&&p| p == 0) {
+                    bail!("--patches must be at least 1, got {p}");
+                }
+                let options = bench::CompressionOptions {
+                    methods: reorder,
+                    kinds: if codecs.is_empty() {
+                        bench::default_compression_kinds()
+                    } else {
+                        codecs
+                    },
+                    lights,
+                    seed,
+                    selection: DeviceSelection::from_flag_or_env(device.device)?,
+                };
+                let mut args: Vec<String> = std::env::args().collect();
+                args[0] = "radiosity".into();
+                let scenes: Vec<(PathBuf, usize)> = scenes.into_iter().zip(patches).collect();
+                let report = bench::compression_report(
+                    &scenes,
+                    &options,
+                    &bench::shell_command_line(&args),
+                    &mut |line| eprintln!("[compression] {line}"),
+                )
+                .context("compression report")?;
+                match output {
+                    Some(path) => {
+                        let mut tmp = path.clone().into_os_string();
+                        tmp.push(".tmp");
+                        let tmp = PathBuf::from(tmp);
+                        std::fs::write(&tmp, &report)
+                            .with_context(|| format!("writing {}", tmp.display()))?;
+                        std::fs::rename(&tmp, &path).with_context(|| {
+                            format!("renaming {} to {}", tmp.display(), path.display())
+                        })?;
+                        eprintln!("wrote {}", path.display());
+                    }
+                    None => print!("{report}"),
+                }
             }
         },
     }
