@@ -156,6 +156,10 @@ use std::time::Instant;
 /// Edge of a tile of the dense part, in texels (a multiple of 4).
 pub const TILE: usize = 32;
 
+/// The largest tile edge a valid encoding may declare (the reader's bound;
+/// the encoder uses [`TILE`]).
+pub const MAX_TILE: usize = 1024;
+
 /// The thesis's log range `L`: bytes span `[e^{−L}, 1]` of the maximum.
 pub const DEFAULT_LOG_RANGE: f32 = 25.0;
 
@@ -672,6 +676,17 @@ impl Encoded {
             })
         };
         let n = self.n;
+        // The limits `encode` enforces, so that no size derived from a
+        // file can overflow or ask for an absurd allocation.
+        if n.checked_mul(n).is_none_or(|nn| nn > u32::MAX as usize) {
+            return bad(format!("{n} patches exceed the codec's limits (n² < 2^32)"));
+        }
+        if self.index.tile > MAX_TILE {
+            return bad(format!(
+                "tile edge {} exceeds {MAX_TILE}",
+                self.index.tile
+            ));
+        }
         let rgb_only = matches!(self.format, DenseFormat::Bc1 | DenseFormat::Bc6h);
         if !matches!(self.channels, 1 | 3) || (rgb_only && self.channels != 3) {
             return bad(format!(

@@ -792,6 +792,18 @@ fn corrupt_codec_sections_are_rejected() {
     let mut b = good.clone();
     b.n += 1;
     assert!(Encoded::from_blob(&b).is_err(), "wrong n");
+    // A tile edge that is consistent with one tile per side but huge (found
+    // by the fuzzer: the gather's tile buffer overflowed).
+    let small = codec::encode(CodecKind::F32, refs(&t), n).unwrap();
+    let mut b = small.to_blob();
+    b.tile_size = 1 << 30;
+    let tps = u32::from_le_bytes(b.tile_index[8..12].try_into().unwrap());
+    if tps == 1 {
+        expect_err(&b, "tile edge", "huge tile edge");
+    }
+    let mut b = small.to_blob();
+    b.tile_size = 4096;
+    expect_err(&b, "tile edge", "tile edge above the bound");
     // Plain formats: a NaN among the dense values.
     let f = codec::encode(CodecKind::F32, refs(&t), n).unwrap();
     let mut b = f.to_blob();
