@@ -186,7 +186,7 @@ struct BakeArgs {
     reorder: Option<String>,
     /// Codec: bc1 (the thesis's: BC1 of log-scaled entries + exact top
     /// fraction), bc4, bc6h, f16 or f32; bc1/bc4 take options, e.g.
-    /// `bc1:top=0.02,L=auto,sparse=f16`. Default: bc1:top=0.04,L=auto,sparse=f32.
+    /// `bc1:top=0.02,L=auto,sparse=f16`. Default: bc1:top=0.04,L=auto,sparse=f16.
     #[arg(long, value_name = "CODEC", conflicts_with = "max_error")]
     codec: Option<String>,
     /// Fraction of the matrix entries stored exactly (bc1/bc4; default 0.04).
