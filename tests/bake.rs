@@ -176,8 +176,8 @@ fn with_the_exact_codec_the_permutation_undoes_exactly() {
     );
     let inverse = Permutation::from_order(perm.inverse.clone()).unwrap();
     let decoded = e.decode();
-    for ch in 0..3 {
-        let back = inverse.apply_symmetric(&decoded[ch], n);
+    for (ch, d) in decoded.iter().enumerate() {
+        let back = inverse.apply_symmetric(d, n);
         assert!(
             back == out.transfer.channel(ch),
             "channel {ch} is not T exactly"
