@@ -165,20 +165,23 @@ pub fn default_compression_methods() -> Vec<ReorderMethod> {
     ]
 }
 
-/// The codec settings the report compares: the thesis's, the default, BC1
-/// with the automatic log range and f16 sparse values at top 2 % and 0 %,
-/// BC4 at top 2 %, BC6H, f16 and f32.
+/// The codec settings the report compares: the thesis's, the default
+/// (top 4 %, automatic log range, f16 sparse values) and the same with f32
+/// sparse values, BC1 with the automatic log range and f16 sparse values
+/// at top 3 %, 2 % and 0 %, BC4 at top 2 %, BC6H, f16 and f32.
 pub fn default_compression_kinds() -> Vec<CodecKind> {
-    let bc1 = |top_fraction| CodecKind::Bc1Log {
+    let bc1 = |top_fraction, sparse| CodecKind::Bc1Log {
         top_fraction,
         log_range: LOG_RANGE_AUTO,
-        sparse: SparseValues::F16,
+        sparse,
     };
     vec![
         CodecKind::THESIS,
         CodecKind::default(),
-        bc1(0.02),
-        bc1(0.0),
+        bc1(0.04, SparseValues::F32),
+        bc1(0.03, SparseValues::F16),
+        bc1(0.02, SparseValues::F16),
+        bc1(0.0, SparseValues::F16),
         CodecKind::Bc4Log {
             top_fraction: 0.02,
             log_range: LOG_RANGE_AUTO,
@@ -648,7 +651,7 @@ mod tests {
         assert_eq!(parse_report_codec("Default").unwrap(), CodecKind::default());
         assert_eq!(
             parse_report_codec("bc1:top=0.02,L=auto,sparse=f16").unwrap(),
-            default_compression_kinds()[2]
+            default_compression_kinds()[4]
         );
         assert!(parse_report_codec("bc7").is_err());
         // Every default setting reads back from its name.
