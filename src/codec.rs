@@ -2052,12 +2052,12 @@ pub fn mat_vec(m: &[f32], n: usize, v: &[f32]) -> Vec<f64> {
 }
 
 /// The candidates [`choose`] tries by default: BC1-log with the automatic
-/// log range at top fractions {0, 0.01, 0.02, 0.04, 0.08} with f16 sparse
+/// log range at top fractions {0, 0.01, 0.02, 0.03, 0.04, 0.08} with f16 sparse
 /// values and {0.02, 0.04} with f32 ones, the thesis's setting, BC4-log at
 /// {0, 0.02}, BC6H, F16 and F32 (exact, so some candidate always passes).
 pub fn default_candidates() -> Vec<CodecKind> {
     let mut v = Vec::new();
-    for &top_fraction in &[0.0, 0.01, 0.02, 0.04, 0.08] {
+    for &top_fraction in &[0.0, 0.01, 0.02, 0.03, 0.04, 0.08] {
         v.push(CodecKind::Bc1Log {
             top_fraction,
             log_range: LOG_RANGE_AUTO,
