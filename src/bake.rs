@@ -307,6 +307,19 @@ fn bar(stage: &str) -> indicatif::ProgressBar {
     bar
 }
 
+/// A spinner with the elapsed time for a stage that cannot count its work
+/// (hidden when stderr is not a terminal).
+fn spinner(stage: &str) -> indicatif::ProgressBar {
+    let sp = indicatif::ProgressBar::new_spinner();
+    sp.set_style(
+        indicatif::ProgressStyle::with_template("{prefix:>14} {spinner} {elapsed}")
+            .expect("a valid template"),
+    );
+    sp.set_prefix(stage.to_string());
+    sp.enable_steady_tick(std::time::Duration::from_millis(200));
+    sp
+}
+
 /// Runs the bake. `progress` receives one line per stage as it starts.
 pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Result<BakeOutput> {
     config.validate()?;
@@ -397,8 +410,10 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     progress(&format!("reordering {n} patches ({method})"));
     let t = Instant::now();
     let t_ref: [&[f32]; 3] = [tr.channel(0), tr.channel(1), tr.channel(2)];
+    let sp = spinner("reorder");
     let (perm, reorder_stats) =
         reorder::reorder_with_stats(method, t_ref, n, &patches, backend_of(&gpu))?;
+    sp.finish_and_clear();
     let permuted: Vec<Vec<f32>> = tr
         .channels
         .iter()
@@ -424,6 +439,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     } else {
         Vec::new()
     };
+    let sp = spinner("encode");
     let (encoded, h_error, chosen_by) = match config.codec {
         CodecChoice::Fixed(kind) => {
             progress(&format!("encoding with {kind}"));
@@ -449,6 +465,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
             (e, Some(err), format!("max-error {max}"))
         }
     };
+    sp.finish_and_clear();
     let summary = CodecSummary::of(&encoded, chosen_by, h_error, b0_samples.len());
     stages.push(StageTime {
         stage: "encode",
@@ -463,7 +480,9 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     for (m, &v) in ff.kept.iter().enumerate() {
         patch_index_of[v] = Some(m as u32);
     }
+    let sp = spinner("mesh map");
     let map = mesh_map::build(&scene, &vox, &patch_index_of)?;
+    sp.finish_and_clear();
     stages.push(StageTime {
         stage: "mesh map",
         seconds: t.elapsed().as_secs_f64(),
