@@ -688,10 +688,7 @@ impl Encoded {
             return bad(format!("{n} patches exceed the codec's limits (n² < 2^32)"));
         }
         if self.index.tile > MAX_TILE {
-            return bad(format!(
-                "tile edge {} exceeds {MAX_TILE}",
-                self.index.tile
-            ));
+            return bad(format!("tile edge {} exceeds {MAX_TILE}", self.index.tile));
         }
         let rgb_only = matches!(self.format, DenseFormat::Bc1 | DenseFormat::Bc6h);
         if !matches!(self.channels, 1 | 3) || (rgb_only && self.channels != 3) {
