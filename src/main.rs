@@ -189,7 +189,9 @@ struct BakeArgs {
     /// `bc1:top=0.02,L=auto,sparse=f16`. Default: bc1:top=0.04,L=auto,sparse=f16.
     #[arg(long, value_name = "CODEC", conflicts_with = "max_error")]
     codec: Option<String>,
-    /// Fraction of the matrix entries stored exactly (bc1/bc4; default 0.04).
+    /// Fraction of the matrix entries kept in the sparse part, beside the
+    /// BC texture (bc1/bc4; exact with sparse=f32, within 2^-11 with f16;
+    /// default 0.04).
     #[arg(long, value_name = "F", conflicts_with = "max_error")]
     top_fraction: Option<f64>,
     /// Choose the cheapest codec setting whose relative RMS error of H = T·B0
