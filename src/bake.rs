@@ -902,10 +902,14 @@ impl std::fmt::Display for FileSummary {
             self.bytes_file
         )?;
         writeln!(f, "scene: {} ({})", self.scene, self.scene_status)?;
+        let bounces = match self.bounces.as_str() {
+            Some(s) => s.to_string(),
+            None => self.bounces.to_string(),
+        };
         writeln!(
             f,
-            "patches: {}; bounces: {}; reorder: {}",
-            self.patches, self.bounces, self.reorder
+            "patches: {}; bounces: {bounces}; reorder: {}",
+            self.patches, self.reorder
         )?;
         let entries = (self.patches * self.patches).max(1) as f64;
         writeln!(
