@@ -166,9 +166,9 @@ pub fn default_compression_methods() -> Vec<ReorderMethod> {
 }
 
 /// The codec settings the report compares: the thesis's, the default
-/// (top 4 %, automatic log range, f16 sparse values) and the same with f32
-/// sparse values, BC1 with the automatic log range and f16 sparse values
-/// at top 3 %, 2 % and 0 %, BC4 at top 2 %, BC6H, f16 and f32.
+/// (top 4 %, automatic log range, RGB9E5 sparse values) and the same with
+/// f16 and f32 sparse values, BC1 with RGB9E5 sparse values at top 3 %,
+/// 2 % and 0 %, BC4 at top 2 %, BC6H, f16 and f32.
 pub fn default_compression_kinds() -> Vec<CodecKind> {
     let bc1 = |top_fraction, sparse| CodecKind::Bc1Log {
         top_fraction,
@@ -178,14 +178,15 @@ pub fn default_compression_kinds() -> Vec<CodecKind> {
     vec![
         CodecKind::THESIS,
         CodecKind::default(),
+        bc1(0.04, SparseValues::F16),
         bc1(0.04, SparseValues::F32),
-        bc1(0.03, SparseValues::F16),
-        bc1(0.02, SparseValues::F16),
-        bc1(0.0, SparseValues::F16),
+        bc1(0.03, SparseValues::Rgb9e5),
+        bc1(0.02, SparseValues::Rgb9e5),
+        bc1(0.0, SparseValues::Rgb9e5),
         CodecKind::Bc4Log {
             top_fraction: 0.02,
             log_range: LOG_RANGE_AUTO,
-            sparse: SparseValues::F16,
+            sparse: SparseValues::Rgb9e5,
         },
         CodecKind::Bc6h,
         CodecKind::F16,
@@ -650,8 +651,8 @@ mod tests {
         assert_eq!(parse_report_codec("thesis").unwrap(), CodecKind::THESIS);
         assert_eq!(parse_report_codec("Default").unwrap(), CodecKind::default());
         assert_eq!(
-            parse_report_codec("bc1:top=0.02,L=auto,sparse=f16").unwrap(),
-            default_compression_kinds()[4]
+            parse_report_codec("bc1:top=0.02,L=auto,sparse=rgb9e5").unwrap(),
+            default_compression_kinds()[5]
         );
         assert!(parse_report_codec("bc7").is_err());
         // Every default setting reads back from its name.

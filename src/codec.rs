@@ -23,9 +23,10 @@
 //! still resolving the zero regions of block-sparse matrices (closed rooms,
 //! zero-albedo columns, `F` itself).
 //!
-//! **Sparse part.** The top fraction of entries (log formats), exact: a CSR
+//! **Sparse part.** The top fraction of entries (log formats): a CSR
 //! matrix with one column index per *position* and the values of all stored
-//! channels (interleaved) for it, f32 or f16 ([`SparseValues`]). Columns are
+//! channels for it, exact in f32, or f16 per channel, or the three channels
+//! in one shared-exponent RGB9E5 word ([`SparseValues`]). Columns are
 //! u16 while `n ≤ 65536`, else u32; row pointers are u32.
 //!
 //! # Formats ([`CodecKind`])
@@ -131,8 +132,8 @@
 //! per matrix entry with its three channels together, as the thesis's
 //! "1.5 bytes per matrix entry (3 channels)". BC1 alone is 0.5, BC6H 1,
 //! BC4 1.5 (0.5 grey), F16 6 (2 grey), F32 12 (4 grey); a sparse position
-//! adds 8 bytes (u16 column, three f16) or 14 (three f32), so a top
-//! fraction f adds 8f or 14f.
+//! adds 6 bytes (u16 column, one RGB9E5 word), 8 (three f16) or 14 (three
+//! f32), so a top fraction f adds 6f, 8f or 14f.
 //!
 //! # Choosing a codec
 //!
@@ -186,6 +187,16 @@ pub enum SparseValues {
     /// Relative error ≤ 2^−11 (each channel scaled by a power of two so its
     /// largest sparse value is a normal half near 2^15).
     F16,
+    /// The three channels of a position in 4 bytes, OpenGL's shared-exponent
+    /// format `GL_RGB9_E5` (EXT_texture_shared_exponent): three 9-bit
+    /// mantissas and one 5-bit exponent, rounded as that specification
+    /// says. Each channel errs by at most 2^−9 of the position's largest
+    /// channel (its mantissa is ≥ 256 when rounded to nearest; true while
+    /// that channel is above 2^−16, which the scale ensures), after one
+    /// power-of-two scale common to the channels puts the largest sparse
+    /// value near 2^15. A grey matrix (one channel) has nothing to share:
+    /// its values are stored as f16, which is cheaper.
+    Rgb9e5,
 }
 
 /// A codec setting (module doc).
@@ -215,17 +226,18 @@ impl Default for CodecKind {
     /// DESIGN.md's setting: BC1 + log + the top 4 % kept in the sparse
     /// part, with the log range chosen from the data ([`auto_log_range`])
     /// rather than the thesis's fixed L = 25, which costs accuracy at no
-    /// saving, and the sparse values in f16 rather than f32: their relative
-    /// error (≤ 2^-11) is two orders below BC1's, and on every scene of
-    /// `docs/compression.md` and at bake time on the Cornell box the H error
-    /// of f16 and f32 sparse values agrees to three digits, while f16 saves
-    /// 6 of 14 bytes per sparse position (0.83 instead of 1.07 bytes per
-    /// entry at 4 %).
+    /// saving, and the sparse values as shared-exponent RGB9E5 rather than
+    /// f32 (4 bytes a position for three channels instead of 12): their
+    /// error (≤ 2^-9 of a position's largest channel) is two orders below
+    /// BC1's, and on every scene of `docs/compression.md` the H error with
+    /// RGB9E5, f16 and f32 sparse values agrees to within 1 % of itself,
+    /// while the bytes per entry drop from 1.07 (f32) and 0.83 (f16) to
+    /// 0.75 at the top 4 %.
     fn default() -> Self {
         CodecKind::Bc1Log {
             top_fraction: DEFAULT_TOP_FRACTION,
             log_range: LOG_RANGE_AUTO,
-            sparse: SparseValues::F16,
+            sparse: SparseValues::Rgb9e5,
         }
     }
 }
@@ -245,6 +257,7 @@ impl CodecKind {
             let s = match s {
                 SparseValues::F32 => "f32",
                 SparseValues::F16 => "f16",
+                SparseValues::Rgb9e5 => "rgb9e5",
             };
             if l == LOG_RANGE_AUTO {
                 format!("{f}(top={top},L=auto,{s})")
@@ -272,7 +285,7 @@ impl CodecKind {
     /// Parses `f32`, `f16`, `bc6h`, `bc1`, `bc4`, or `bc1`/`bc4` with
     /// options: `bc1(top=0.02,L=16,f16)` or `bc1:top=0.02,L=auto,sparse=f16`
     /// (any subset; the defaults are [`CodecKind::default`]'s: top = 0.04,
-    /// L = auto, f16). [`CodecKind::name`] is read back.
+    /// L = auto, rgb9e5). [`CodecKind::name`] is read back.
     pub fn parse(s: &str) -> Result<CodecKind, BakeError> {
         let t = s.trim().to_ascii_lowercase();
         let bad = |why: String| {
@@ -287,7 +300,7 @@ impl CodecKind {
         };
         let head = head.trim_end_matches("-log");
         let (mut top, mut l, mut sparse) =
-            (DEFAULT_TOP_FRACTION, LOG_RANGE_AUTO, SparseValues::F16);
+            (DEFAULT_TOP_FRACTION, LOG_RANGE_AUTO, SparseValues::Rgb9e5);
         for opt in opts.split(',').map(str::trim).filter(|o| !o.is_empty()) {
             let (k, v) = opt.split_once('=').unwrap_or(("sparse", opt));
             match k.trim() {
@@ -298,6 +311,7 @@ impl CodecKind {
                     sparse = match v.trim() {
                         "f32" => SparseValues::F32,
                         "f16" => SparseValues::F16,
+                        "rgb9e5" | "e5" => SparseValues::Rgb9e5,
                         _ => return Err(bad(format!("sparse={v}"))),
                     }
                 }
@@ -555,11 +569,12 @@ impl Encoded {
             return 0;
         }
         let col = if self.n <= 1 << 16 { 2 } else { 4 };
-        let val = match self.sparse.precision {
-            SparseValues::F32 => 4,
-            SparseValues::F16 => 2,
+        let per_position = match self.sparse.precision {
+            SparseValues::F32 => 4 * self.channels,
+            SparseValues::F16 => 2 * self.channels,
+            SparseValues::Rgb9e5 => 4,
         };
-        self.sparse.row_ptr.len() * 4 + self.sparse.len() * (col + self.channels * val)
+        self.sparse.row_ptr.len() * 4 + self.sparse.len() * (col + per_position)
     }
 
     /// Bytes of the tile index (row starts, tile columns and offsets) and of
@@ -955,6 +970,49 @@ pub fn decode(e: &Encoded) -> [Vec<f32>; 3] {
 
 /// The power of two `s` with `max · s ∈ [2^14, 2^15)`: halves of values
 /// times `s` stay below 65504 and normal down to `2^−29 · max`. 1 for 0.
+/// OpenGL's shared-exponent format `GL_RGB9_E5`, as specified by
+/// EXT_texture_shared_exponent (section "Encoding of shared exponent
+/// formats"): N = 9 mantissa bits, exponent bias B = 15, E_max = 31; bits
+/// 0–8 red, 9–17 green, 18–26 blue, 27–31 the exponent.
+pub mod rgb9e5 {
+    const N: i32 = 9;
+    const B: i32 = 15;
+    const E_MAX: i32 = 31;
+
+    /// The largest representable value, (2^N − 1) / 2^N · 2^(E_max − B).
+    pub const MAX: f32 = 65408.0;
+
+    /// Packs three values (negative and NaN are taken as 0, values above
+    /// [`MAX`] as [`MAX`]) with the specification's rounding.
+    pub fn pack(v: [f32; 3]) -> u32 {
+        let c = v.map(|x| if x > 0.0 { x.min(MAX) as f64 } else { 0.0 });
+        let max_c = c[0].max(c[1]).max(c[2]);
+        // exp_shared' = max(−B − 1, floor(log2(max_c))) + 1 + B; a zero
+        // triple takes the smallest exponent.
+        let floor_log2 = if max_c > 0.0 {
+            max_c.log2().floor() as i32
+        } else {
+            -B - 1
+        };
+        let mut e = floor_log2.max(-B - 1) + 1 + B;
+        let step = |e: i32| 2f64.powi(e - B - N);
+        let max_s = (max_c / step(e) + 0.5).floor() as i32;
+        if max_s == 1 << N {
+            e += 1;
+        }
+        debug_assert!((0..=E_MAX).contains(&e));
+        let m = c.map(|x| ((x / step(e) + 0.5).floor() as u32).min((1 << N) - 1));
+        m[0] | m[1] << 9 | m[2] << 18 | (e as u32) << 27
+    }
+
+    /// The three values of a packed word: `mantissa · 2^(e − B − N)`.
+    pub fn unpack(p: u32) -> [f32; 3] {
+        let e = (p >> 27) as i32;
+        let step = 2f64.powi(e - B - N);
+        [0, 9, 18].map(|s| (((p >> s) & 0x1ff) as f64 * step) as f32)
+    }
+}
+
 fn pow2_scale(max: f32) -> f32 {
     if !(max > 0.0) {
         return 1.0;
@@ -1239,6 +1297,24 @@ pub fn encode(kind: CodecKind, t: [&[f32]; 3], n: usize) -> Result<Encoded, Bake
         }
     }
     let mut sparse_scale = [1.0f32; 3];
+    // One channel has no exponent to share: f16 is cheaper (type doc).
+    let sparse_values = if sparse_values == SparseValues::Rgb9e5 && ch == 1 {
+        SparseValues::F16
+    } else {
+        sparse_values
+    };
+    if sparse_values == SparseValues::Rgb9e5 {
+        let m = values.iter().cloned().fold(0.0f32, f32::max);
+        sparse_scale = [pow2_scale(m); 3];
+        for v in values.chunks_exact_mut(3) {
+            let s = sparse_scale[0];
+            let packed = rgb9e5::pack([v[0] * s, v[1] * s, v[2] * s]);
+            let back = rgb9e5::unpack(packed);
+            for c in 0..3 {
+                v[c] = back[c] / s;
+            }
+        }
+    }
     if sparse_values == SparseValues::F16 {
         for (c, s) in sparse_scale.iter_mut().enumerate().take(ch) {
             let m = values
@@ -2049,31 +2125,28 @@ pub fn mat_vec(m: &[f32], n: usize, v: &[f32]) -> Vec<f64> {
 }
 
 /// The candidates [`choose`] tries by default: BC1-log with the automatic
-/// log range at top fractions {0, 0.01, 0.02, 0.03, 0.04, 0.08} with f16 sparse
-/// values and {0.02, 0.04} with f32 ones, the thesis's setting, BC4-log at
-/// {0, 0.02}, BC6H, F16 and F32 (exact, so some candidate always passes).
+/// log range and RGB9E5 sparse values at top fractions {0, 0.01, 0.02,
+/// 0.03, 0.04, 0.06, 0.08}, the same at the top 4 % with f16 and f32 sparse
+/// values, the thesis's setting, BC4-log at {0, 0.02}, BC6H, F16 and F32
+/// (exact, so some candidate always passes).
 pub fn default_candidates() -> Vec<CodecKind> {
-    let mut v = Vec::new();
-    for &top_fraction in &[0.0, 0.01, 0.02, 0.03, 0.04, 0.08] {
-        v.push(CodecKind::Bc1Log {
-            top_fraction,
-            log_range: LOG_RANGE_AUTO,
-            sparse: SparseValues::F16,
-        });
-    }
-    for &top_fraction in &[0.02, 0.04] {
-        v.push(CodecKind::Bc1Log {
-            top_fraction,
-            log_range: LOG_RANGE_AUTO,
-            sparse: SparseValues::F32,
-        });
-    }
+    let bc1 = |top_fraction, sparse| CodecKind::Bc1Log {
+        top_fraction,
+        log_range: LOG_RANGE_AUTO,
+        sparse,
+    };
+    let mut v: Vec<CodecKind> = [0.0, 0.01, 0.02, 0.03, 0.04, 0.06, 0.08]
+        .iter()
+        .map(|&f| bc1(f, SparseValues::Rgb9e5))
+        .collect();
+    v.push(bc1(0.04, SparseValues::F16));
+    v.push(bc1(0.04, SparseValues::F32));
     v.push(CodecKind::THESIS);
     for &top_fraction in &[0.0, 0.02] {
         v.push(CodecKind::Bc4Log {
             top_fraction,
             log_range: LOG_RANGE_AUTO,
-            sparse: SparseValues::F16,
+            sparse: SparseValues::Rgb9e5,
         });
     }
     v.extend([CodecKind::Bc6h, CodecKind::F16, CodecKind::F32]);
@@ -2321,11 +2394,12 @@ pub fn report_table(rows: &[ReportRow]) -> String {
 ///   `tiles_per_side u32`, `log_range f32`, stored tiles `m u32`), then
 ///   `row_start` (`tiles_per_side + 1` × u32), `offsets` (m × u32) and
 ///   `cols` (m × u16).
-/// - `SPRS`: a 24-byte header (`precision u32`: 0 none, 1 f32, 2 f16;
+/// - `SPRS`: a 24-byte header (`precision u32`: 0 none, 1 f32, 2 f16,
+///   3 RGB9E5;
 ///   `col_bytes u32`: 2 or 4; positions `m u32`; the f16 scales 3 × f32),
 ///   then, when `m > 0` or precision is not 0, `row_ptr` (n + 1 × u32),
 ///   `cols` (m × u16 or u32) and the values (m × channels, f32, or f16 bit
-///   patterns of value × scale).
+///   patterns of value × scale; or m × u32 RGB9E5 words of value × scale).
 ///
 /// [`Encoded::from_blob`] checks every length against the bytes present
 /// before reading, then runs [`Encoded::check`] and rejects non-finite or
@@ -2495,6 +2569,7 @@ impl Encoded {
             (false, _) => 0,
             (true, SparseValues::F32) => 1,
             (true, SparseValues::F16) => 2,
+            (true, SparseValues::Rgb9e5) => 3,
         };
         let col_bytes: u32 = if self.n <= 1 << 16 { 2 } else { 4 };
         let mut sparse = Vec::with_capacity(layout::SPARSE_HEADER + self.bytes_sparse());
@@ -2510,13 +2585,20 @@ impl Encoded {
                 }
             }
             let ch = self.channels;
-            for (k, &v) in sp.values.iter().enumerate() {
-                match sp.precision {
-                    SparseValues::F32 => sparse.extend_from_slice(&v.to_le_bytes()),
-                    SparseValues::F16 => sparse.extend_from_slice(
-                        &f16::from_f32(v * sp.scale[k % ch]).to_bits().to_le_bytes(),
-                    ),
+            match sp.precision {
+                SparseValues::F32 => put_u32s(&mut sparse, sp.values.iter().map(|v| v.to_bits())),
+                SparseValues::F16 => {
+                    for (k, &v) in sp.values.iter().enumerate() {
+                        let h = f16::from_f32(v * sp.scale[k % ch]);
+                        sparse.extend_from_slice(&h.to_bits().to_le_bytes());
+                    }
                 }
+                SparseValues::Rgb9e5 => put_u32s(
+                    &mut sparse,
+                    sp.values
+                        .chunks_exact(3)
+                        .map(|v| rgb9e5::pack(std::array::from_fn(|c| v[c] * sp.scale[c]))),
+                ),
             }
         }
         // The encode time is left out: the same matrix must give the same
@@ -2580,16 +2662,20 @@ impl Encoded {
         let scale_bits = c.u32s(3, "f16 scales")?;
         let sparse_scale: [f32; 3] = std::array::from_fn(|k| f32::from_bits(scale_bits[k]));
         let mut sparse = Sparse {
-            precision: if precision == 2 {
-                SparseValues::F16
-            } else {
-                SparseValues::F32
+            precision: match precision {
+                2 => SparseValues::F16,
+                3 => SparseValues::Rgb9e5,
+                _ => SparseValues::F32,
             },
             scale: sparse_scale,
             ..Sparse::default()
         };
         let expect_cols = if n <= 1 << 16 { 2 } else { 4 };
-        if precision > 2 || col_bytes != expect_cols || (precision == 0 && entries != 0) {
+        if precision > 3
+            || col_bytes != expect_cols
+            || (precision == 0 && entries != 0)
+            || (precision == 3 && channels != 3)
+        {
             return Err(bad(
                 "SPRS",
                 format!(
@@ -2609,20 +2695,29 @@ impl Encoded {
                 c.u32s(entries, "columns")?
             };
             let count = entries.saturating_mul(channels);
-            sparse.values = if precision == 1 {
-                c.u32s(count, "values")?
+            if precision != 1 && sparse_scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+                return Err(bad("SPRS", format!("value scales {sparse_scale:?}")));
+            }
+            sparse.values = match precision {
+                1 => c
+                    .u32s(count, "values")?
                     .into_iter()
                     .map(f32::from_bits)
-                    .collect()
-            } else {
-                if sparse_scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-                    return Err(bad("SPRS", format!("f16 scales {sparse_scale:?}")));
-                }
-                c.u16s(count, "values")?
+                    .collect(),
+                2 => c
+                    .u16s(count, "values")?
                     .into_iter()
                     .enumerate()
                     .map(|(k, b)| f16::from_bits(b).to_f32() / sparse_scale[k % channels])
-                    .collect()
+                    .collect(),
+                _ => c
+                    .u32s(entries, "values")?
+                    .into_iter()
+                    .flat_map(|p| {
+                        let v = rgb9e5::unpack(p);
+                        [0, 1, 2].map(|k| v[k] / sparse_scale[k])
+                    })
+                    .collect(),
             };
             if let Some(v) = sparse
                 .values

@@ -186,11 +186,13 @@ struct BakeArgs {
     reorder: Option<String>,
     /// Codec: bc1 (the thesis's: BC1 of log-scaled entries + exact top
     /// fraction), bc4, bc6h, f16 or f32; bc1/bc4 take options, e.g.
-    /// `bc1:top=0.02,L=auto,sparse=f16`. Default: bc1:top=0.04,L=auto,sparse=f16.
+    /// `bc1:top=0.02,L=auto,sparse=f16` (sparse values f32, f16 or rgb9e5).
+    /// Default: bc1:top=0.04,L=auto,sparse=rgb9e5.
     #[arg(long, value_name = "CODEC", conflicts_with = "max_error")]
     codec: Option<String>,
     /// Fraction of the matrix entries kept in the sparse part, beside the
-    /// BC texture (bc1/bc4; exact with sparse=f32, within 2^-11 with f16;
+    /// BC texture (bc1/bc4; exact with sparse=f32, within 2^-11 with f16,
+    /// within 2^-9 of the largest channel with rgb9e5;
     /// default 0.04).
     #[arg(long, value_name = "F", conflicts_with = "max_error")]
     top_fraction: Option<f64>,

@@ -255,6 +255,6 @@ fn bad_codec_options_are_refused() {
     assert!(CodecKind::default().with_top_fraction(1.5).is_err());
     assert_eq!(
         CodecKind::default().with_top_fraction(0.02).unwrap().name(),
-        "bc1-log(top=0.02,L=auto,f16)"
+        "bc1-log(top=0.02,L=auto,rgb9e5)"
     );
 }

@@ -693,6 +693,7 @@ fn blobs_round_trip_every_variant() {
     let kinds = [
         CodecKind::THESIS,
         CodecKind::default(),
+        bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::Rgb9e5),
         bc1(0.02, codec::LOG_RANGE_AUTO, SparseValues::F16),
         bc1(0.0, codec::LOG_RANGE_AUTO, SparseValues::F16),
         bc4(0.02, 12.0),
@@ -839,4 +840,93 @@ fn corrupt_codec_sections_are_rejected() {
             }
         }
     }
+}
+
+/// GL_RGB9_E5 as EXT_texture_shared_exponent specifies it: exact for
+/// values on the format's grid, every channel within 2^-9 of the triple's
+/// largest value otherwise (the largest channel's mantissa is at least 256
+/// after rounding, so half a step is at most max / 512) as long as that
+/// value is above 2^-16, clamped above.
+#[test]
+fn rgb9e5_follows_the_specification() {
+    use codec::rgb9e5::{pack, unpack, MAX};
+    assert_eq!(pack([1.0, 1.0, 1.0]), 256 | 256 << 9 | 256 << 18 | 16 << 27);
+    assert_eq!(unpack(pack([1.0, 0.5, 0.25])), [1.0, 0.5, 0.25]);
+    assert_eq!(unpack(pack([0.0; 3])), [0.0; 3]);
+    assert_eq!(unpack(pack([MAX, 0.0, 1.0]))[0], MAX);
+    assert_eq!(unpack(pack([1e9, -1.0, f32::NAN])), [MAX, 0.0, 0.0]);
+    // 511.5 · 2^-8 rounds up to a mantissa of 512: the exponent moves up.
+    assert_eq!(unpack(pack([511.5 / 256.0, 0.0, 0.0]))[0], 2.0);
+    let mut rng = synthetic::Rng(7);
+    for _ in 0..100_000 {
+        let scale = 2f64.powf(30.0 * rng.uniform() - 15.0);
+        let v: [f32; 3] = std::array::from_fn(|_| (rng.uniform().powi(3) * scale) as f32);
+        let max = v.iter().cloned().fold(0.0f32, f32::max) as f64;
+        let back = unpack(pack(v));
+        // Below 2^-16 the exponent is at its floor and the step stays 2^-24
+        // (the format's denormal range): half a step, 2^-25, bounds the error.
+        let bound = (max / 512.0).max(2f64.powi(-25)) * (1.0 + 1e-6);
+        for c in 0..3 {
+            let err = (back[c] as f64 - v[c] as f64).abs();
+            assert!(err <= bound, "{v:?} -> {back:?}");
+        }
+    }
+}
+
+/// Sparse values in RGB9E5 cost 4 bytes a position instead of 6 (f16) or
+/// 12 (f32), and `H` barely notices: their error (≤ 2^-9 of a position's
+/// largest channel) is far below BC1's on the dense part. A grey matrix
+/// stores f16 instead (one channel has no exponent to share).
+#[test]
+fn rgb9e5_sparse_values_are_cheaper_at_the_same_error() {
+    let (patches, t) = room(8, 2);
+    let n = patches.len();
+    let lights = synthetic::point_lights(&patches, 8, 3);
+    let f32s = codec::encode(
+        bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::F32),
+        refs(&t),
+        n,
+    )
+    .unwrap();
+    let e5 = codec::encode(
+        bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::Rgb9e5),
+        refs(&t),
+        n,
+    )
+    .unwrap();
+    assert_eq!(e5.sparse.precision, SparseValues::Rgb9e5);
+    assert_eq!(e5.bytes_sparse(), (n + 1) * 4 + e5.sparse.len() * 6);
+    assert_eq!(e5.sparse.cols, f32s.sparse.cols, "the same positions");
+    for (p, (a, b)) in f32s
+        .sparse
+        .values
+        .chunks_exact(3)
+        .zip(e5.sparse.values.chunks_exact(3))
+        .enumerate()
+    {
+        let max = a.iter().cloned().fold(0.0f32, f32::max) as f64;
+        for c in 0..3 {
+            let err = (a[c] as f64 - b[c] as f64).abs();
+            assert!(
+                err <= max / 512.0 * (1.0 + 1e-6),
+                "position {p}: {a:?} vs {b:?}"
+            );
+        }
+    }
+    let err = |e: &Encoded| codec::measure(refs(&t), n, &e.decode(), &lights).rel_rms_h;
+    let (ef, ee) = (err(&f32s), err(&e5));
+    eprintln!("H error: f32 sparse {ef:.4e}, rgb9e5 sparse {ee:.4e}");
+    assert!(ee <= ef * 1.05 + 1e-6, "rgb9e5 {ee} vs f32 {ef}");
+    let grey = [&t[1][..], &t[1][..], &t[1][..]];
+    let g = codec::encode(
+        bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::Rgb9e5),
+        grey,
+        n,
+    )
+    .unwrap();
+    assert_eq!((g.channels, g.sparse.precision), (1, SparseValues::F16));
+    assert_eq!(
+        CodecKind::parse("bc1:sparse=rgb9e5").unwrap(),
+        bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::Rgb9e5)
+    );
 }

@@ -54,13 +54,13 @@ fn base() -> &'static [u8] {
                 })
                 .collect(),
             permutation: vec![1, 2, 0],
-            // A real encoding (BC1 + log + an f16 sparse part), so that the
+            // A real encoding (BC1 + log + an RGB9E5 sparse part), so that the
             // codec sections' own validation is reached too.
             codec: {
                 let t: [Vec<f32>; 3] = std::array::from_fn(|c| {
                     (0..9).map(|k| ((k * 5 + c) % 7) as f32 * 0.01).collect()
                 });
-                let kind = CodecKind::parse("bc1:top=0.25,sparse=f16").unwrap();
+                let kind = CodecKind::parse("bc1:top=0.25,sparse=rgb9e5").unwrap();
                 codec::encode(kind, [&t[0], &t[1], &t[2]], 3)
                     .unwrap()
                     .to_blob()
