@@ -2798,23 +2798,8 @@ pub mod synthetic {
     use faer::linalg::solvers::Solve as _;
     use rayon::prelude::*;
 
-    /// SplitMix64 (Steele, Lea & Flood, OOPSLA 2014): small and seeded.
-    pub struct Rng(pub u64);
-
-    impl Rng {
-        pub fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            z ^ (z >> 31)
-        }
-
-        /// Uniform in [0, 1).
-        pub fn uniform(&mut self) -> f64 {
-            (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-        }
-    }
+    /// The seeded generator of the synthetic inputs.
+    pub use crate::math::SplitMix64 as Rng;
 
     /// The Cornell box's wall albedos: the −x wall red, the +x wall green,
     /// the rest white.

@@ -7,7 +7,7 @@
 //! compression report measures `H = T̃ · B0` over.
 
 use crate::bvh::Bvh;
-use crate::math::{cross, dot, normalize, sub};
+use crate::math::{cross, dot, normalize, sub, SplitMix64};
 use crate::scene::Scene;
 use crate::scene_config::Light;
 use crate::voxelize::Patch;
@@ -168,40 +168,25 @@ pub fn exitance(patches: &[Patch], d: &[[f64; 3]]) -> Vec<[f64; 3]> {
         .collect()
 }
 
-/// SplitMix64 (Steele, Lea, Flood 2014): a tiny seeded generator, so the
-/// random lights are the same on every machine.
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// `count` seeded random lights for a scene with `bounds`: even indices
 /// directional (travelling downwards at 15°–75° from the vertical, unit
 /// irradiance), odd indices spot lights (inside the middle 80 % of the
 /// bounds, aimed at a random point of the bounds, cone 30°–60°, beam two
 /// thirds of the cone, intensity `extent²` so irradiance is O(1)).
 pub fn random_lights(bounds: ([f32; 3], [f32; 3]), count: usize, seed: u64) -> Vec<Light> {
-    let mut rng = SplitMix(seed);
+    let mut rng = SplitMix64::new(seed);
     let (lo, hi) = (f64s(bounds.0), f64s(bounds.1));
     let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-    let inside = |rng: &mut SplitMix, margin: f64| -> [f64; 3] {
+    let inside = |rng: &mut SplitMix64, margin: f64| -> [f64; 3] {
         std::array::from_fn(|a| {
-            lo[a] + (hi[a] - lo[a]) * (margin + (1.0 - 2.0 * margin) * rng.next())
+            lo[a] + (hi[a] - lo[a]) * (margin + (1.0 - 2.0 * margin) * rng.uniform())
         })
     };
     (0..count)
         .map(|i| {
             if i % 2 == 0 {
-                let theta = (15.0 + 60.0 * rng.next()).to_radians();
-                let phi = 2.0 * std::f64::consts::PI * rng.next();
+                let theta = (15.0 + 60.0 * rng.uniform()).to_radians();
+                let phi = 2.0 * std::f64::consts::PI * rng.uniform();
                 let dir = [
                     theta.sin() * phi.cos(),
                     -theta.cos(),
@@ -217,7 +202,7 @@ pub fn random_lights(bounds: ([f32; 3], [f32; 3]), count: usize, seed: u64) -> V
                 if dot(sub(target, pos), sub(target, pos)) == 0.0 {
                     target[1] -= 1.0;
                 }
-                let cone = 30.0 + 30.0 * rng.next();
+                let cone = 30.0 + 30.0 * rng.uniform();
                 let i = (extent * extent) as f32;
                 Light::Spot {
                     position: pos.map(|x| x as f32),

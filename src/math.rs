@@ -1,5 +1,6 @@
 //! Small f64 vector helpers on `[f64; 3]`, the representation the bake's
-//! CPU references use (they mirror kernels that work on plain arrays).
+//! CPU references use (they mirror kernels that work on plain arrays), and
+//! the seeded generator behind every reproducible random input.
 
 /// `a − b`.
 pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -24,4 +25,29 @@ pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 pub fn normalize(a: [f64; 3]) -> [f64; 3] {
     let l = dot(a, a).sqrt();
     a.map(|x| x / l)
+}
+
+/// SplitMix64 (Steele, Lea & Flood, "Fast splittable pseudorandom number
+/// generators", OOPSLA 2014): tiny and seeded, so random lights and test
+/// matrices are the same on every machine.
+#[derive(Clone, Debug)]
+pub struct SplitMix64(pub u64);
+
+impl SplitMix64 {
+    pub fn new(seed: u64) -> SplitMix64 {
+        SplitMix64(seed)
+    }
+
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1) with 53 random bits.
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
 }

@@ -957,28 +957,8 @@ pub fn bench_stress(
 /// zero diagonal, reciprocity `A_i F_ij = A_j F_ji`, row sums ≤ 1 or = 1),
 /// seeded, for tests and benchmarks.
 pub mod synthetic {
-    /// SplitMix64 (Steele, Lea & Flood, "Fast splittable pseudorandom number
-    /// generators", OOPSLA 2014): small, seeded, good enough for test data.
-    pub struct Rng(u64);
-
-    impl Rng {
-        pub fn new(seed: u64) -> Rng {
-            Rng(seed)
-        }
-
-        pub fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            z ^ (z >> 31)
-        }
-
-        /// Uniform in [0, 1) with 53 random bits.
-        pub fn uniform(&mut self) -> f64 {
-            (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-        }
-    }
+    /// The seeded generator of the synthetic inputs.
+    pub use crate::math::SplitMix64 as Rng;
 
     /// Form factors and the patch areas they are reciprocal with.
     pub struct Synthetic {
