@@ -323,6 +323,14 @@ fn spinner(stage: &str) -> indicatif::ProgressBar {
 /// Runs the bake. `progress` receives one line per stage as it starts.
 pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Result<BakeOutput> {
     config.validate()?;
+    // The output's directory is made now, so that a path that cannot be
+    // written fails before the bake rather than after it.
+    if let Some(dir) = config.output.as_deref().and_then(Path::parent) {
+        if !dir.as_os_str().is_empty() {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("creating the output directory {}", dir.display()))?;
+        }
+    }
     let mut stages = Vec::new();
 
     progress(&format!("loading {}", config.scene.display()));

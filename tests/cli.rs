@@ -178,11 +178,27 @@ fn bake_reports_counts_and_exports_patches() {
 fn bake_writes_a_file_that_info_describes() {
     let dir = common::temp_dir("cli-rad");
     let scene = common::bundled("cornell_box");
+    // The output's directory need not exist (the README's first command
+    // writes into out/); an impossible one fails before the bake.
+    let blocker = dir.join("file");
+    std::fs::write(&blocker, b"").unwrap();
+    let o = radiosity(&[
+        "bake",
+        scene.to_str().unwrap(),
+        "-o",
+        blocker.join("x.rad").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("output directory"), "{}", stderr(&o));
+    assert!(
+        !stderr(&o).contains("[bake] voxelizing"),
+        "failed before the bake"
+    );
     for (bounces, expect) in [
         ("2", serde_json::json!(2)),
         ("inf", serde_json::json!("inf")),
     ] {
-        let out = dir.join(format!("cornell-{bounces}.rad"));
+        let out = dir.join("new").join(format!("cornell-{bounces}.rad"));
         let o = radiosity(&[
             "bake",
             scene.to_str().unwrap(),
@@ -242,7 +258,7 @@ fn bake_writes_a_file_that_info_describes() {
         assert!(stdout(&o).contains("bytes per matrix entry"));
     }
     // A damaged file is refused with its name and the damaged section.
-    let path = dir.join("cornell-2.rad");
+    let path = dir.join("new").join("cornell-2.rad");
     let mut bytes = std::fs::read(&path).unwrap();
     let k = bytes.len() - 100;
     bytes[k] ^= 0x40;
