@@ -331,86 +331,21 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
                 .with_context(|| format!("creating the output directory {}", dir.display()))?;
         }
     }
-    let mut stages = Vec::new();
-
-    progress(&format!("loading {}", config.scene.display()));
-    let t = Instant::now();
-    let scene = scene::load(&config.scene)?;
-    stages.push(StageTime {
-        stage: "load",
-        seconds: t.elapsed().as_secs_f64(),
-    });
-
     let gpu = match config.compute {
         ComputeChoice::OpenCl(sel) => Some(Gpu::new(sel).context("opening the OpenCL device")?),
         ComputeChoice::CpuReference => None,
     };
     let backend = backend_of(&gpu);
-    let device = match &gpu {
-        Some(g) => format!(
-            "{} ({}, {})",
-            g.info().name,
-            g.info().kind,
-            g.info().platform
-        ),
-        None => "CPU reference (f64)".to_string(),
-    };
-    progress(&format!("voxelizing on {device}"));
-    let t = Instant::now();
-    let vox = voxelize::voxelize(&scene, config.resolution, &backend)?;
-    stages.push(StageTime {
-        stage: "voxelize",
-        seconds: t.elapsed().as_secs_f64(),
-    });
-
-    progress(&format!(
-        "form factors for {} patches ({} pairs)",
-        vox.patches.len(),
-        (vox.patches.len() as u64).pow(2) / 2
-    ));
-    let t = Instant::now();
-    let pb = bar("form factors");
-    let ff = form_factor::form_factors(
-        &scene,
-        &vox.patches,
-        &vox.grid,
-        &config.form_factor,
-        &backend,
-        &mut |done, total| {
-            pb.set_length(total);
-            pb.set_position(done);
-        },
-    )?;
-    pb.finish_and_clear();
-    stages.push(StageTime {
-        stage: "form factors",
-        seconds: t.elapsed().as_secs_f64(),
-    });
-    let patches: Vec<Patch> = ff.kept.iter().map(|&i| vox.patches[i].clone()).collect();
-    let albedo: Vec<[f32; 3]> = patches.iter().map(|p| p.albedo.map(|a| a as f32)).collect();
-
-    progress(&format!(
-        "transfer matrix, {} bounces, n = {}",
-        config.transfer.bounces, ff.n
-    ));
-    let t = Instant::now();
-    let pb = bar("transfer");
-    let tr = transfer::transfer(
-        &ff.f,
-        ff.n,
-        &albedo,
-        &config.transfer,
-        &backend,
-        &mut |done, total| {
-            pb.set_length(total);
-            pb.set_position(done);
-        },
-    )?;
-    pb.finish_and_clear();
-    stages.push(StageTime {
-        stage: "transfer",
-        seconds: t.elapsed().as_secs_f64(),
-    });
+    let device = device_name(&backend);
+    let TransferStages {
+        scene,
+        vox,
+        form_factors: ff,
+        patches,
+        albedo,
+        transfer: tr,
+        mut stages,
+    } = transfer_stages(config, &backend, progress)?;
 
     // Stage 5: reorder rows and columns (the same permutation).
     let n = ff.n;
@@ -585,6 +520,118 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     })
 }
 
+/// What bake steps 1–4 leave: the scene, its voxel patches, the form
+/// factors, the kept patches (matrix order) with their albedos, and the
+/// transfer matrix.
+pub struct TransferStages {
+    pub scene: scene::Scene,
+    pub vox: voxelize::Voxelization,
+    pub form_factors: FormFactors,
+    pub patches: Vec<Patch>,
+    pub albedo: Vec<[f32; 3]>,
+    pub transfer: Transfer,
+    pub stages: Vec<StageTime>,
+}
+
+/// Bake steps 1–4 (load → voxelize → form factors → transfer) on
+/// `backend`, with progress bars; [`run`] continues from here, and the
+/// compression report (`bench::compression`) measures what it returns.
+pub fn transfer_stages(
+    config: &BakeConfig,
+    backend: &Backend,
+    progress: &mut dyn FnMut(&str),
+) -> anyhow::Result<TransferStages> {
+    let mut stages = Vec::new();
+
+    progress(&format!("loading {}", config.scene.display()));
+    let t = Instant::now();
+    let scene = scene::load(&config.scene)?;
+    stages.push(StageTime {
+        stage: "load",
+        seconds: t.elapsed().as_secs_f64(),
+    });
+
+    progress(&format!("voxelizing on {}", device_name(backend)));
+    let t = Instant::now();
+    let vox = voxelize::voxelize(&scene, config.resolution, backend)?;
+    stages.push(StageTime {
+        stage: "voxelize",
+        seconds: t.elapsed().as_secs_f64(),
+    });
+
+    progress(&format!(
+        "form factors for {} patches ({} pairs)",
+        vox.patches.len(),
+        (vox.patches.len() as u64).pow(2) / 2
+    ));
+    let t = Instant::now();
+    let pb = bar("form factors");
+    let ff = form_factor::form_factors(
+        &scene,
+        &vox.patches,
+        &vox.grid,
+        &config.form_factor,
+        backend,
+        &mut |done, total| {
+            pb.set_length(total);
+            pb.set_position(done);
+        },
+    )?;
+    pb.finish_and_clear();
+    stages.push(StageTime {
+        stage: "form factors",
+        seconds: t.elapsed().as_secs_f64(),
+    });
+    let patches: Vec<Patch> = ff.kept.iter().map(|&i| vox.patches[i].clone()).collect();
+    let albedo: Vec<[f32; 3]> = patches.iter().map(|p| p.albedo.map(|a| a as f32)).collect();
+
+    progress(&format!(
+        "transfer matrix, {} bounces, n = {}",
+        config.transfer.bounces, ff.n
+    ));
+    let t = Instant::now();
+    let pb = bar("transfer");
+    let tr = transfer::transfer(
+        &ff.f,
+        ff.n,
+        &albedo,
+        &config.transfer,
+        backend,
+        &mut |done, total| {
+            pb.set_length(total);
+            pb.set_position(done);
+        },
+    )?;
+    pb.finish_and_clear();
+    stages.push(StageTime {
+        stage: "transfer",
+        seconds: t.elapsed().as_secs_f64(),
+    });
+
+    Ok(TransferStages {
+        scene,
+        vox,
+        form_factors: ff,
+        patches,
+        albedo,
+        transfer: tr,
+        stages,
+    })
+}
+
+/// The device a backend runs on, for reports.
+fn device_name(backend: &Backend) -> String {
+    match backend {
+        Backend::OpenCl(g) => format!(
+            "{} ({}, {})",
+            g.info().name,
+            g.info().kind,
+            g.info().platform
+        ),
+        Backend::Cpu => "CPU reference (f64)".to_string(),
+    }
+}
+
 /// The backend of an optional device (`Backend` is not `Copy`).
 fn backend_of(gpu: &Option<Gpu>) -> Backend<'_> {
     match gpu {
@@ -597,16 +644,7 @@ fn backend_of(gpu: &Option<Gpu>) -> Backend<'_> {
 /// ([`direct::random_lights`] with [`ERROR_LIGHTS_SEED`]), direct light with
 /// shadows on the CPU, for the patches in matrix order.
 pub fn error_samples(scene: &scene::Scene, patches: &[Patch], count: usize) -> Vec<[Vec<f32>; 3]> {
-    let lights = direct::random_lights(scene.bounds(), count, ERROR_LIGHTS_SEED);
-    let dl = direct::DirectLight::new(scene);
-    lights
-        .iter()
-        .map(|l| {
-            let d = dl.irradiance(patches, std::slice::from_ref(l));
-            let b0 = direct::exitance(patches, &d);
-            std::array::from_fn(|c| b0.iter().map(|b| b[c] as f32).collect())
-        })
-        .collect()
+    direct::light_samples(scene, patches, count, ERROR_LIGHTS_SEED)
 }
 
 /// The exact `T · B0` in f64 for every sample and channel.

@@ -4,15 +4,14 @@
 //! bandwidth. Timings on a shared 2-core machine are noisy; compare the
 //! ratios within one run.
 
+use crate::bake::{self, BakeConfig};
 use crate::codec::{self, CodecKind, ReportRow, SparseValues, LOG_RANGE_AUTO};
 use crate::compute::{DeviceSelection, Gpu};
 use crate::direct;
 use crate::error::BakeError;
-use crate::form_factor::{self, FormFactorOptions};
 use crate::reorder::ReorderMethod;
 use crate::scene;
-use crate::transfer::{self, TransferOptions};
-use crate::voxelize::{self, Backend, Patch, Resolution};
+use crate::voxelize::{self, Backend, Resolution};
 use anyhow::Context as _;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -342,7 +341,8 @@ fn compression_preamble(
          dense part that are zero in every channel and not stored.\n\
          - Codec names: `bc1-log(top=f,L=…,v)` is BC1 of log-scaled bytes with log range L \
          (`auto`: chosen from the data; the thesis fixes 25) and the top fraction f of entries \
-         stored exactly with values in v (f32 or f16); `bc4-log` the same with one BC4 image \
+         kept in a sparse part with values in v (f32 exact, f16, or rgb9e5: three channels \
+         in one shared-exponent word); `bc4-log` the same with one BC4 image \
          per channel; `bc6h`, `f16`, `f32` plain (module doc of src/codec.rs).\n"
     )?;
     writeln!(
@@ -381,65 +381,24 @@ fn compression_section(
         return Err(BakeError::Options("the target patch count must be at least 1".into()).into());
     }
     let backend = Backend::OpenCl(gpu);
-    let mut stages: Vec<(&str, f64)> = Vec::new();
+    let config = BakeConfig::new(scene_path.to_path_buf(), Resolution::Patches(patches));
+    let bake::TransferStages {
+        scene,
+        vox,
+        patches: kept,
+        transfer: tr,
+        stages: bake_stages,
+        ..
+    } = bake::transfer_stages(&config, &backend, progress)?;
+    let mut stages: Vec<(&str, f64)> = bake_stages.iter().map(|s| (s.stage, s.seconds)).collect();
     let mut stage = |name, t: Instant| stages.push((name, t.elapsed().as_secs_f64()));
-
-    progress(&format!("loading {}", scene_path.display()));
-    let t = Instant::now();
-    let scene = scene::load(scene_path)?;
-    stage("load", t);
-
-    progress(&format!("voxelizing to ~{patches} patches"));
-    let t = Instant::now();
-    let vox = voxelize::voxelize(&scene, Resolution::Patches(patches), &backend)?;
-    stage("voxelize", t);
-
-    progress(&format!("form factors for {} patches", vox.patches.len()));
-    let t = Instant::now();
-    let ff = form_factor::form_factors(
-        &scene,
-        &vox.patches,
-        &vox.grid,
-        &FormFactorOptions::default(),
-        &backend,
-        &mut |_, _| {},
-    )?;
-    stage("form factors", t);
-    let kept: Vec<Patch> = ff.kept.iter().map(|&i| vox.patches[i].clone()).collect();
-    let albedo: Vec<[f32; 3]> = kept.iter().map(|p| p.albedo.map(|a| a as f32)).collect();
-
-    let transfer_options = TransferOptions::default();
-    progress(&format!(
-        "transfer matrix, {} bounces, n = {}",
-        transfer_options.bounces, ff.n
-    ));
-    let t = Instant::now();
-    let tr = transfer::transfer(
-        &ff.f,
-        ff.n,
-        &albedo,
-        &transfer_options,
-        &backend,
-        &mut |_, _| {},
-    )?;
-    stage("transfer", t);
-    drop(ff.f);
 
     progress(&format!(
         "direct light of {} random lights (seed {})",
         options.lights, options.seed
     ));
     let t = Instant::now();
-    let lights = direct::random_lights(scene.bounds(), options.lights, options.seed);
-    let direct_light = direct::DirectLight::new(&scene);
-    let b0_samples: Vec<[Vec<f32>; 3]> = lights
-        .iter()
-        .map(|light| {
-            let d = direct_light.irradiance(&kept, std::slice::from_ref(light));
-            let b0 = direct::exitance(&kept, &d);
-            std::array::from_fn(|c| b0.iter().map(|b| b[c] as f32).collect())
-        })
-        .collect();
+    let b0_samples = direct::light_samples(&scene, &kept, options.lights, options.seed);
     let dark = b0_samples
         .iter()
         .filter(|b| b.iter().all(|c| c.iter().all(|&x| x == 0.0)))

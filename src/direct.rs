@@ -168,6 +168,26 @@ pub fn exitance(patches: &[Patch], d: &[[f64; 3]]) -> Vec<[f64; 3]> {
         .collect()
 }
 
+/// `B0 = ρ ∘ D + E` (f32, per channel) on `patches` for each of `count`
+/// seeded random lights ([`random_lights`]) alone: the samples over which
+/// the compression error of `H = T̃ · B0` is measured.
+pub fn light_samples(
+    scene: &Scene,
+    patches: &[Patch],
+    count: usize,
+    seed: u64,
+) -> Vec<[Vec<f32>; 3]> {
+    let lights = random_lights(scene.bounds(), count, seed);
+    let dl = DirectLight::new(scene);
+    lights
+        .iter()
+        .map(|l| {
+            let b0 = exitance(patches, &dl.irradiance(patches, std::slice::from_ref(l)));
+            std::array::from_fn(|c| b0.iter().map(|b| b[c] as f32).collect())
+        })
+        .collect()
+}
+
 /// `count` seeded random lights for a scene with `bounds`: even indices
 /// directional (travelling downwards at 15°–75° from the vertical, unit
 /// irradiance), odd indices spot lights (inside the middle 80 % of the
