@@ -4,15 +4,17 @@
 
 use anyhow::{bail, Context as _};
 use clap::{Args, Parser, Subcommand};
+use radiosity::bake::form_factor::FormFactorOptions;
+use radiosity::bake::reorder::ReorderMethod;
+use radiosity::bake::transfer::{Bounces, StressCase, TransferOptions};
+use radiosity::bake::voxelize::{Backend, Resolution};
 use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
-use radiosity::codec::CodecKind;
-use radiosity::compute::Gpu;
-use radiosity::compute::{self, DeviceSelection};
-use radiosity::form_factor::FormFactorOptions;
-use radiosity::reorder::ReorderMethod;
-use radiosity::transfer::{Bounces, StressCase, TransferOptions};
-use radiosity::voxelize::{Backend, Resolution};
-use radiosity::{bakefile, bench, form_factor, gemm, generate, scene, transfer};
+use radiosity::bakefile::codec::CodecKind;
+use radiosity::core::compute::Gpu;
+use radiosity::core::compute::{self, DeviceSelection};
+use radiosity::{
+    bake::form_factor, bake::gemm, bake::transfer, bakefile, bench, core::scene, generate,
+};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -126,14 +128,14 @@ enum BenchCommand {
         patches: Vec<usize>,
         /// Comma-separated reorderings: none, greedy:PASSES, hilbert.
         #[arg(long, value_delimiter = ',', default_value = "none,greedy:1,greedy:2,hilbert",
-              value_parser = |s: &str| radiosity::reorder::ReorderMethod::parse(s).map_err(|e| e.to_string()))]
-        reorder: Vec<radiosity::reorder::ReorderMethod>,
+              value_parser = |s: &str| radiosity::bake::reorder::ReorderMethod::parse(s).map_err(|e| e.to_string()))]
+        reorder: Vec<radiosity::bake::reorder::ReorderMethod>,
         /// A codec (repeat the flag, or separate with `;`): f32, f16, bc6h,
         /// bc1/bc4 with options (e.g. `bc1:top=0.02,L=auto,sparse=f16`),
         /// `thesis` or `default`. Default: the report's eight settings.
         #[arg(long = "codec", value_delimiter = ';',
               value_parser = |s: &str| bench::parse_report_codec(s).map_err(|e| e.to_string()))]
-        codecs: Vec<radiosity::codec::CodecKind>,
+        codecs: Vec<radiosity::bakefile::codec::CodecKind>,
         /// Seeded random lights (each one B0 sample).
         #[arg(long, default_value_t = 64)]
         lights: usize,

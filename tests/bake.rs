@@ -8,12 +8,12 @@
 
 mod common;
 
+use radiosity::bake::reorder::{Permutation, ReorderMethod};
+use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::{self, BakeConfig, BakeOutput, CodecChoice, ComputeChoice};
 use radiosity::bakefile;
-use radiosity::codec::{self, CodecKind, Encoded};
-use radiosity::compute::DeviceSelection;
-use radiosity::reorder::{Permutation, ReorderMethod};
-use radiosity::voxelize::Resolution;
+use radiosity::bakefile::codec::{self, CodecKind, Encoded};
+use radiosity::core::compute::DeviceSelection;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
@@ -83,7 +83,7 @@ fn the_file_reads_back_to_what_was_baked() {
     // The run time's path: B0 in patch order, permuted into matrix order,
     // gathered from the file's matrix, permuted back. Its error against
     // the exact T·B0 is the error the bake reported for this light.
-    let scene = radiosity::scene::load(&c.scene).unwrap();
+    let scene = radiosity::core::scene::load(&c.scene).unwrap();
     let b0 = bake::error_samples(&scene, &out.patches, 1).remove(0);
     let perm = Permutation::from_order(file.permutation.clone()).unwrap();
     let bp: [Vec<f32>; 3] = std::array::from_fn(|ch| perm.apply_vec(&b0[ch]));
@@ -115,9 +115,9 @@ fn t_decoded_is_the_decoded_matrix_in_patch_order() {
     let (out, c) = default_bake();
     let dir = c.export.as_ref().unwrap();
     let n = out.patches.len();
-    let (shape, t) = radiosity::npy::read_f32(&dir.join("T.npy")).unwrap();
+    let (shape, t) = radiosity::core::npy::read_f32(&dir.join("T.npy")).unwrap();
     assert_eq!(shape, [3, n, n]);
-    let (shape, td) = radiosity::npy::read_f32(&dir.join("T_decoded.npy")).unwrap();
+    let (shape, td) = radiosity::core::npy::read_f32(&dir.join("T_decoded.npy")).unwrap();
     assert_eq!(shape, [3, n, n]);
     let decoded = out.encoded.decode();
     let inv = &out.permutation.inverse;
@@ -210,7 +210,7 @@ fn max_error_picks_a_setting_within_the_bound() {
     assert!(out.report.codec.chosen_by.starts_with("max-error"));
     // The cheapest: nothing cheaper among the candidates meets the bound.
     let perm = &out.permutation;
-    let scene = radiosity::scene::load(&c.scene).unwrap();
+    let scene = radiosity::core::scene::load(&c.scene).unwrap();
     let n = out.patches.len();
     let samples: Vec<[Vec<f32>; 3]> = bake::error_samples(&scene, &out.patches, c.error_lights)
         .iter()

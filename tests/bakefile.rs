@@ -923,7 +923,7 @@ fn scene_hash_follows_the_obj_and_mtl_contents() {
         [0.5; 3],
     );
     let obj = common::write_quads("bakefile-hash", &[q]);
-    let scene = radiosity::scene::load(&obj).unwrap();
+    let scene = radiosity::core::scene::load(&obj).unwrap();
     let h1 = SceneHash::of_scene(&scene).unwrap();
     assert_eq!(h1, SceneHash::of_scene(&scene).unwrap(), "deterministic");
     assert_eq!(h1.obj_len, std::fs::metadata(&obj).unwrap().len());

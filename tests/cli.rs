@@ -121,15 +121,15 @@ fn bake_reports_counts_and_exports_patches() {
     assert!(v["codec"]["bytes_per_entry"].as_f64().unwrap() > 0.0);
     // The matrices, in the order of patches.csv.
     let n = patches as usize;
-    let (shape, f) = radiosity::npy::read_f32(&dir.join("F.npy")).unwrap();
+    let (shape, f) = radiosity::core::npy::read_f32(&dir.join("F.npy")).unwrap();
     assert_eq!(shape, [n, n]);
     assert!(f.iter().all(|x| x.is_finite() && *x >= 0.0));
-    let (shape, t) = radiosity::npy::read_f32(&dir.join("T.npy")).unwrap();
+    let (shape, t) = radiosity::core::npy::read_f32(&dir.join("T.npy")).unwrap();
     assert_eq!(shape, [3, n, n]);
     // The matrix as the run time sees it: same shape and order as T.npy,
     // and within the codec's error of it (relative Frobenius error a few
     // per cent for the default BC1 setting; docs/compression.md).
-    let (shape, td) = radiosity::npy::read_f32(&dir.join("T_decoded.npy")).unwrap();
+    let (shape, td) = radiosity::core::npy::read_f32(&dir.join("T_decoded.npy")).unwrap();
     assert_eq!(shape, [3, n, n]);
     let (d2, r2) = t.iter().zip(&td).fold((0.0, 0.0), |(d, r), (&a, &b)| {
         (d + (a as f64 - b as f64).powi(2), r + (a as f64).powi(2))
@@ -139,7 +139,7 @@ fn bake_reports_counts_and_exports_patches() {
         "T_decoded is far from T: {}",
         (d2 / r2).sqrt()
     );
-    let (shape, _) = radiosity::npy::read_f32(&dir.join("albedo.npy")).unwrap();
+    let (shape, _) = radiosity::core::npy::read_f32(&dir.join("albedo.npy")).unwrap();
     assert_eq!(shape, [n, 3]);
     let csv = std::fs::read_to_string(dir.join("patches.csv")).unwrap();
     let mut lines = csv.lines();

@@ -5,9 +5,9 @@
 //! the bake file's codec sections (round trip and rejection of corrupt
 //! sections).
 
-use radiosity::codec::{self, synthetic, CodecKind, DenseFormat, Encoded, SparseValues};
-use radiosity::reorder::{self, ReorderMethod};
-use radiosity::voxelize::{Backend, Patch};
+use radiosity::bake::reorder::{self, ReorderMethod};
+use radiosity::bake::voxelize::{Backend, Patch};
+use radiosity::bakefile::codec::{self, synthetic, CodecKind, DenseFormat, Encoded, SparseValues};
 
 fn refs(t: &[Vec<f32>; 3]) -> [&[f32]; 3] {
     [&t[0][..], &t[1][..], &t[2][..]]

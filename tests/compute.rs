@@ -3,8 +3,8 @@
 
 mod common;
 
-use radiosity::compute::{self, round_up, Access, DeviceSelection, Gpu};
-use radiosity::error::ClError;
+use radiosity::core::compute::{self, round_up, Access, DeviceSelection, Gpu};
+use radiosity::core::error::ClError;
 
 const SMOKE: &str = r#"
 kernel void axpy(float a, global const float* x, global float* y, uint n) {

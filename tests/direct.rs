@@ -4,14 +4,14 @@
 mod common;
 
 use common::{quad, write_quads};
-use radiosity::direct::{exitance, random_lights, DirectLight};
-use radiosity::scene;
-use radiosity::scene_config::Light;
-use radiosity::voxelize::{voxelize_at, Backend};
+use radiosity::bake::voxelize::{voxelize_at, Backend};
+use radiosity::core::direct::{exitance, random_lights, DirectLight};
+use radiosity::core::scene;
+use radiosity::core::scene_config::Light;
 
 /// A 1 × 1 floor at y = 0 (facing up), voxel size 0.25 (16 patches), and
 /// optionally a 0.5 × 1 roof at y = 0.5 over its x < 0 half (facing down).
-fn floor(with_roof: bool) -> (scene::Scene, Vec<radiosity::voxelize::Patch>) {
+fn floor(with_roof: bool) -> (scene::Scene, Vec<radiosity::bake::voxelize::Patch>) {
     let up = quad(
         [0.0, 0.0, 0.0],
         [0.0, 0.0, 1.0],
@@ -125,8 +125,8 @@ fn random_lights_are_seeded_and_valid() {
     assert_eq!(format!("{a:?}"), format!("{:?}", random_lights(b, 64, 7)));
     assert_ne!(format!("{a:?}"), format!("{:?}", random_lights(b, 64, 8)));
     for l in &a {
-        let cfg = radiosity::scene_config::SceneConfig {
-            camera: radiosity::scene_config::Camera {
+        let cfg = radiosity::core::scene_config::SceneConfig {
+            camera: radiosity::core::scene_config::Camera {
                 position: [0.0; 3],
                 target: [0.0, 0.0, 1.0],
                 up: [0.0, 1.0, 0.0],

@@ -9,11 +9,11 @@
 mod common;
 
 use common::{gpu, quad, temp_dir, write_quads, Quad};
-use radiosity::form_factor::{self, FormFactorOptions, FormFactors};
+use radiosity::bake::form_factor::{self, FormFactorOptions, FormFactors};
+use radiosity::bake::voxelize::{self, Backend, Direction, Grid, Patch, Voxelization};
+use radiosity::core::npy;
+use radiosity::core::scene::{self, Scene};
 use radiosity::generate;
-use radiosity::npy;
-use radiosity::scene::{self, Scene};
-use radiosity::voxelize::{self, Backend, Direction, Grid, Patch, Voxelization};
 use std::path::PathBuf;
 
 /// A bundled scene written fresh into a temp dir (the generator is

@@ -1,5 +1,5 @@
 //! Tests of the bundled scene generators (`radiosity::generate`) and of the
-//! camera/lights file (`radiosity::scene_config`).
+//! camera/lights file (`radiosity::core::scene_config`).
 //!
 //! The committed files under `scenes/` must equal what the generator writes
 //! now. To regenerate them after changing a generator, run
@@ -7,11 +7,11 @@
 //! (or `cargo run --release -- generate NAME -o scenes/NAME` per scene).
 
 use glam::DVec3;
+use radiosity::core::scene_config::{self, Camera, ConfigError, Light, SceneConfig};
 use radiosity::generate::{
     build, coaxial_disks_factor, parallel_rectangles_factor, perpendicular_rectangles_factor,
     write_bundled, GenerateError, GeneratedScene, BUNDLED,
 };
-use radiosity::scene_config::{self, Camera, ConfigError, Light, SceneConfig};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 

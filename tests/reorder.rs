@@ -4,9 +4,9 @@
 
 mod common;
 
-use radiosity::codec::{self, synthetic, CodecKind, SparseValues};
-use radiosity::reorder::{self, Features, Permutation, ReorderMethod};
-use radiosity::voxelize::Backend;
+use radiosity::bake::reorder::{self, Features, Permutation, ReorderMethod};
+use radiosity::bake::voxelize::Backend;
+use radiosity::bakefile::codec::{self, synthetic, CodecKind, SparseValues};
 
 /// A seeded random permutation of `n` (Fisher–Yates).
 fn shuffle(n: usize, seed: u64) -> Permutation {

@@ -4,8 +4,8 @@
 //! property test that `load` never panics.
 
 use proptest::prelude::*;
-use radiosity::error::SceneError;
-use radiosity::scene::{self, Scene, ALBEDO_MAX, DEFAULT_ALBEDO};
+use radiosity::core::error::SceneError;
+use radiosity::core::scene::{self, Scene, ALBEDO_MAX, DEFAULT_ALBEDO};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 

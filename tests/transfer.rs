@@ -4,10 +4,10 @@
 
 mod common;
 
-use radiosity::error::BakeError;
-use radiosity::gemm::{self, Gemm, GemmConfig, Layout};
-use radiosity::transfer::{self, synthetic, Bounces, Transfer, TransferOptions};
-use radiosity::voxelize::Backend;
+use radiosity::bake::gemm::{self, Gemm, GemmConfig, Layout};
+use radiosity::bake::transfer::{self, synthetic, Bounces, Transfer, TransferOptions};
+use radiosity::bake::voxelize::Backend;
+use radiosity::core::error::BakeError;
 
 /// f32 unit roundoff.
 const U: f64 = 1.0 / (1u64 << 24) as f64;
@@ -428,8 +428,8 @@ fn cpu_backend_is_the_reference() {
 /// stages.
 #[test]
 fn real_form_factors_cornell_box_and_closed_cube() {
-    use radiosity::form_factor::{self, FormFactorOptions};
-    use radiosity::{scene, voxelize};
+    use radiosity::bake::form_factor::{self, FormFactorOptions};
+    use radiosity::{bake::voxelize, core::scene};
     let gpu = common::gpu();
     let backend = Backend::OpenCl(&gpu);
     let cornell = scene::load(&common::bundled("cornell_box")).unwrap();

@@ -6,12 +6,12 @@
 mod common;
 
 use common::{gpu, quad, write_quads, Quad};
-use radiosity::math::{cross, dot, normalize as norm};
-use radiosity::scene;
-use radiosity::voxelize::{
+use radiosity::bake::voxelize::{
     self, cl_pieces, compare, compare_pieces, cpu_pieces, grid_coords, voxelize_at, Backend,
     Direction, Grid, Resolution, Voxelization,
 };
+use radiosity::core::math::{cross, dot, normalize as norm};
+use radiosity::core::scene;
 
 /// f32 rounding of grid coordinates: a coordinate of magnitude up to
 /// `max_dim` voxels carries an error of `max_dim * f32::EPSILON / 2`, and a

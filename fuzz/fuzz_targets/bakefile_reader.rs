@@ -29,7 +29,7 @@ use radiosity::bakefile::{
     self, crc32, encode, header_checksum, parse, BakeFile, PatchRecord, SceneHash, ENTRY_LEN,
     HEADER_LEN,
 };
-use radiosity::codec::{self, CodecKind, Encoded};
+use radiosity::bakefile::codec::{self, CodecKind, Encoded};
 use std::sync::OnceLock;
 
 /// A small valid bake file: 3 patches, 4 vertices.

@@ -13,7 +13,7 @@
 
 use super::mesh::MeshBuilder;
 use super::{assemble, GeneratedScene};
-use crate::scene_config::{Camera, Light, SceneConfig};
+use crate::core::scene_config::{Camera, Light, SceneConfig};
 use glam::DVec3;
 use std::f64::consts::PI;
 

@@ -11,7 +11,7 @@
 
 use super::mesh::MeshBuilder;
 use super::{assemble, GeneratedScene};
-use crate::scene_config::{Camera, Light, SceneConfig};
+use crate::core::scene_config::{Camera, Light, SceneConfig};
 use glam::DVec3;
 
 /// Decimals written for this scene (published values have one).

@@ -22,7 +22,7 @@
 
 use super::mesh::{MeshBuilder, ALL, NX, NY, NZ, PX, PY, PZ};
 use super::{assemble, GeneratedScene};
-use crate::scene_config::{Camera, Light, SceneConfig};
+use crate::core::scene_config::{Camera, Light, SceneConfig};
 use glam::DVec3;
 
 /// Millimetre-and-a-tenth precision keeps the file small.

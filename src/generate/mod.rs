@@ -1,5 +1,5 @@
 //! Deterministic generators for the bundled test scenes, written as
-//! OBJ + MTL plus a camera-and-lights JSON file (`crate::scene_config`).
+//! OBJ + MTL plus a camera-and-lights JSON file (`crate::core::scene_config`).
 //!
 //! The scenes serve the measures of DESIGN.md section 3: the Cornell box
 //! from its published data, analytic configurations with known view
@@ -23,7 +23,7 @@ pub use analytic::{
 };
 pub use mesh::{MaterialDef, Mesh};
 
-use crate::scene_config::{ConfigError, SceneConfig};
+use crate::core::scene_config::{ConfigError, SceneConfig};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 

@@ -3,7 +3,7 @@
 
 #![allow(dead_code)]
 
-use radiosity::compute::{DeviceSelection, Gpu};
+use radiosity::core::compute::{DeviceSelection, Gpu};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};

@@ -48,17 +48,17 @@
 //! Memory is proportional to the number of pieces (occupied voxels times
 //! triangles per voxel), never to the grid volume.
 
-use crate::compute::{round_up, Access, Gpu};
-use crate::error::BakeError;
-use crate::math::{cross, dot, sub};
-use crate::scene::Scene;
+use crate::core::compute::{round_up, Access, Gpu};
+use crate::core::error::BakeError;
+use crate::core::math::{cross, dot, sub};
+use crate::core::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::time::Instant;
 
 /// The kernel source, embedded.
-pub const KERNEL_SOURCE: &str = include_str!("../kernels/voxelize.cl");
+pub const KERNEL_SOURCE: &str = include_str!("../../kernels/voxelize.cl");
 
 /// Half size of the box in the overlap test; equals `SAT_HALF` in the kernel
 /// (the margin keeps the f32 test conservative for grid coordinates up to
@@ -790,7 +790,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         // normals at exact 45° ties pointing apart; the average can then
         // leave [0, ALBEDO_MAX], and is clamped and counted.
         for a in &mut albedo {
-            let clamped = a.clamp(0.0, crate::scene::ALBEDO_MAX as f64);
+            let clamped = a.clamp(0.0, crate::core::scene::ALBEDO_MAX as f64);
             if clamped != *a {
                 stats.clamped_albedo += 1;
                 *a = clamped;

@@ -31,8 +31,8 @@ use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
-use crate::error::SceneError;
-use crate::math::{cross, dot, sub};
+use crate::core::error::SceneError;
+use crate::core::math::{cross, dot, sub};
 
 /// Albedo components are clamped to at most this value: every `ρ < 1` keeps
 /// `T_∞ = F (I − diag(ρ) F)^{-1}` finite, and 0.99 bounds the infinite-bounce

@@ -7,7 +7,7 @@
 //! run on any OpenCL 1.2 device, PoCL on the CPU included (TOOLCHAIN.md), so
 //! kernels avoid float atomics and OpenCL 2.0 features.
 
-use crate::error::ClError;
+use crate::core::error::ClError;
 use opencl3::command_queue::{CommandQueue, CL_QUEUE_PROFILING_ENABLE};
 use opencl3::context::Context;
 use opencl3::device::{

@@ -3,30 +3,38 @@
 //! voxelize → form factors → transfer → reorder → encode → mesh-to-patch
 //! map → write. The compression error of the bake is measured on the way:
 //! `H = T̃ · B0` against the exact `T · B0` over seeded random lights
-//! ([`crate::direct::random_lights`], direct light with shadows on the CPU),
+//! ([`crate::core::direct::random_lights`], direct light with shadows on the CPU),
 //! and `--max-error` uses the same lights to choose the codec.
 //!
 //! Everything written to the file is deterministic (no timestamps, no
 //! timings): the same scene and options give the same bytes. Timings go to
 //! the terminal report only.
 
+pub mod form_factor;
+pub mod gemm;
+pub mod mesh_map;
+pub mod preview;
+pub mod reorder;
+pub mod transfer;
+pub mod voxelize;
+
+use crate::bakefile::codec::{self, CodecKind, Encoded};
 use crate::bakefile::{self, BakeFile, PatchRecord, SceneHash};
-use crate::codec::{self, CodecKind, Encoded};
-use crate::compute::{DeviceSelection, Gpu};
-use crate::direct;
-use crate::error::BakeError;
-use crate::form_factor::{self, FormFactorOptions, FormFactorStats, FormFactors};
-use crate::mesh_map::{self, MeshMapStats};
-use crate::npy;
-use crate::reorder::{self, Permutation, ReorderMethod, ReorderStats};
-use crate::scene::{self, SceneSummary};
-use crate::transfer::{self, Bounces, Transfer, TransferOptions, TransferStats};
-use crate::voxelize::{self, Backend, Patch, Resolution, VoxelStats};
+use crate::core::compute::{DeviceSelection, Gpu};
+use crate::core::direct;
+use crate::core::error::BakeError;
+use crate::core::npy;
+use crate::core::scene::{self, SceneSummary};
 use anyhow::Context as _;
+use form_factor::{FormFactorOptions, FormFactorStats, FormFactors};
+use mesh_map::MeshMapStats;
+use reorder::{Permutation, ReorderMethod, ReorderStats};
 use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use transfer::{Bounces, Transfer, TransferOptions, TransferStats};
+use voxelize::{Backend, Patch, Resolution, VoxelStats};
 
 /// Where the bake's OpenCL stages run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -681,7 +689,7 @@ fn export(
     export_patches(dir, patches)?;
     let camera = scene_camera(scene_path, bounds)?;
     let png = dir.join("patches.png");
-    crate::preview::render_patches(patches, &camera, 800, 600)
+    crate::bake::preview::render_patches(patches, &camera, 800, 600)
         .save(&png)
         .with_context(|| format!("writing {}", png.display()))?;
     form_factor::write_f_npy(&dir.join("F.npy"), ff)?;
@@ -703,12 +711,12 @@ fn export(
 pub fn scene_camera(
     scene: &Path,
     bounds: ([f32; 3], [f32; 3]),
-) -> anyhow::Result<crate::scene_config::Camera> {
+) -> anyhow::Result<crate::core::scene_config::Camera> {
     let json = scene.with_extension("json");
     if json.exists() {
-        Ok(crate::scene_config::load(&json)?.camera)
+        Ok(crate::core::scene_config::load(&json)?.camera)
     } else {
-        Ok(crate::preview::default_camera(bounds))
+        Ok(crate::bake::preview::default_camera(bounds))
     }
 }
 
@@ -758,7 +766,7 @@ impl std::fmt::Display for BakeReport {
             v.sliver_pieces,
             v.sliver_area
         )?;
-        let per_dir: Vec<String> = crate::voxelize::Direction::ALL
+        let per_dir: Vec<String> = crate::bake::voxelize::Direction::ALL
             .iter()
             .map(|d| format!("{} {}", d.name(), v.patches_per_direction[*d as usize]))
             .collect();
@@ -772,7 +780,7 @@ impl std::fmt::Display for BakeReport {
             v.merged_groups,
             v.covered_groups,
             v.covered_area,
-            crate::voxelize::Direction::ALL
+            crate::bake::voxelize::Direction::ALL
                 .iter()
                 .map(|d| format!("{} {:.3e}", d.name(), v.covered_area_per_direction[*d as usize]))
                 .collect::<Vec<_>>()

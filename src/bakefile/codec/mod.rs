@@ -145,9 +145,9 @@
 //! times for every reordering and codec. [`synthetic`] builds test
 //! matrices with the structure of real ones.
 
-use crate::error::BakeError;
-use crate::reorder::{self, Permutation, ReorderMethod};
-use crate::voxelize::{Backend, Patch};
+use crate::bake::reorder::{self, Permutation, ReorderMethod};
+use crate::bake::voxelize::{Backend, Patch};
+use crate::core::error::BakeError;
 use half::f16;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -2794,12 +2794,12 @@ impl Encoded {
 /// between coplanar patches, row sums ≤ 1). `T_∞ = F (I − diag(ρ) F)^{-1}`
 /// per channel, solved in f64 with faer.
 pub mod synthetic {
-    use crate::voxelize::{Direction, Patch};
+    use crate::bake::voxelize::{Direction, Patch};
     use faer::linalg::solvers::Solve as _;
     use rayon::prelude::*;
 
     /// The seeded generator of the synthetic inputs.
-    pub use crate::math::SplitMix64 as Rng;
+    pub use crate::core::math::SplitMix64 as Rng;
 
     /// The Cornell box's wall albedos: the −x wall red, the +x wall green,
     /// the rest white.

@@ -51,7 +51,7 @@
 //!   their columns then form whole zero tiles of every power of `Q`, which
 //!   the product skips. The order is restored on download.
 //! - All-zero tiles of either operand are skipped in every product (tile
-//!   flags, [`crate::gemm`]); closed rooms make `F`, `Q^m` and `T`
+//!   flags, [`crate::bake::gemm`]); closed rooms make `F`, `Q^m` and `T`
 //!   block-sparse. The skipped fraction is reported.
 //!
 //! **Safety.** Albedos outside `[0, 1)` and non-finite or negative form
@@ -71,9 +71,9 @@
 //! products for `T_k`, an LU solve of `X (I − diag(ρ) F) = F` for `T_∞`
 //! (faer).
 
-use crate::error::BakeError;
-use crate::gemm::{DeviceMatrix, Gemm, GemmConfig, GemmRun};
-use crate::voxelize::Backend;
+use crate::bake::gemm::{DeviceMatrix, Gemm, GemmConfig, GemmRun};
+use crate::bake::voxelize::Backend;
+use crate::core::error::BakeError;
 use faer::linalg::solvers::Solve as _;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -767,7 +767,7 @@ pub fn reference(
     rho: &[f64],
     bounces: Bounces,
 ) -> Result<Vec<f64>, BakeError> {
-    use crate::gemm::to_faer;
+    use crate::bake::gemm::to_faer;
     assert_eq!(rho.len(), n);
     let fm = to_faer(f, n, f64::from);
     let par = faer::Par::rayon(0);
@@ -958,7 +958,7 @@ pub fn bench_stress(
 /// seeded, for tests and benchmarks.
 pub mod synthetic {
     /// The seeded generator of the synthetic inputs.
-    pub use crate::math::SplitMix64 as Rng;
+    pub use crate::core::math::SplitMix64 as Rng;
 
     /// Form factors and the patch areas they are reciprocal with.
     pub struct Synthetic {

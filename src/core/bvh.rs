@@ -1,6 +1,6 @@
 //! A bounding volume hierarchy over the scene's triangles and the patches'
 //! squares (two triangles each, tagged with their patch), for the
-//! visibility rays of the form-factor stage ([`crate::form_factor`]).
+//! visibility rays of the form-factor stage ([`crate::bake::form_factor`]).
 //!
 //! **Build** (host, f64 decisions on f32 data, deterministic): binned
 //! surface-area-heuristic splits (Wald, "On fast Construction of SAH-based
@@ -38,8 +38,8 @@
 //! the square lies on, when there is one (any real blocking polygon is a
 //! valid certificate, whichever triangle the ray hit).
 
-use crate::math::{cross, dot, sub};
-use crate::voxelize::Direction;
+use crate::bake::voxelize::Direction;
+use crate::core::math::{cross, dot, sub};
 use std::collections::HashMap;
 use std::time::Instant;
 

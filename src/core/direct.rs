@@ -6,11 +6,11 @@
 //! be compared with, and the source of the seeded random lights that the
 //! compression report measures `H = T̃ · B0` over.
 
-use crate::bvh::Bvh;
-use crate::math::{cross, dot, normalize, sub, SplitMix64};
-use crate::scene::Scene;
-use crate::scene_config::Light;
-use crate::voxelize::Patch;
+use crate::bake::voxelize::Patch;
+use crate::core::bvh::Bvh;
+use crate::core::math::{cross, dot, normalize, sub, SplitMix64};
+use crate::core::scene::Scene;
+use crate::core::scene_config::Light;
 use rayon::prelude::*;
 
 fn f64s(v: [f32; 3]) -> [f64; 3] {

@@ -4,14 +4,14 @@
 //! bandwidth. Timings on a shared 2-core machine are noisy; compare the
 //! ratios within one run.
 
+use crate::bake::reorder::ReorderMethod;
+use crate::bake::voxelize::{self, Backend, Resolution};
 use crate::bake::{self, BakeConfig};
-use crate::codec::{self, CodecKind, ReportRow, SparseValues, LOG_RANGE_AUTO};
-use crate::compute::{DeviceSelection, Gpu};
-use crate::direct;
-use crate::error::BakeError;
-use crate::reorder::ReorderMethod;
-use crate::scene;
-use crate::voxelize::{self, Backend, Resolution};
+use crate::bakefile::codec::{self, CodecKind, ReportRow, SparseValues, LOG_RANGE_AUTO};
+use crate::core::compute::{DeviceSelection, Gpu};
+use crate::core::direct;
+use crate::core::error::BakeError;
+use crate::core::scene;
 use anyhow::Context as _;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -559,7 +559,7 @@ pub fn shell_command_line(args: &[String]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::codec::CodecError;
+    use crate::bakefile::codec::CodecError;
 
     fn row(reorder: &str, h: f64, bytes: f64) -> ReportRow {
         ReportRow {

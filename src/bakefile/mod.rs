@@ -80,7 +80,9 @@
 //! a reader sees the old file or the new one, never a partial file, and a
 //! failed write leaves the old file untouched and removes the temporary.
 
-use crate::scene::Scene;
+pub mod codec;
+
+use crate::core::scene::Scene;
 use serde::Serialize;
 use std::fs::File;
 use std::io::{self, Read, Write};
@@ -578,7 +580,7 @@ fn hash_stream(mut r: impl Read, h: &mut Fnv1a64) -> io::Result<u64> {
     }
 }
 
-/// One patch as stored: the f32 rounding of [`crate::voxelize::Patch`]'s
+/// One patch as stored: the f32 rounding of [`crate::bake::voxelize::Patch`]'s
 /// centre `c_i`, unit normal `N_i`, area `A_i`, albedo `ρ_i` and emission
 /// `E_i` (DESIGN.md section 2), in matrix order.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
@@ -590,8 +592,8 @@ pub struct PatchRecord {
     pub emission: [f32; 3],
 }
 
-impl From<&crate::voxelize::Patch> for PatchRecord {
-    fn from(p: &crate::voxelize::Patch) -> PatchRecord {
+impl From<&crate::bake::voxelize::Patch> for PatchRecord {
+    fn from(p: &crate::bake::voxelize::Patch) -> PatchRecord {
         PatchRecord {
             centre: p.centre.map(|x| x as f32),
             normal: p.normal.map(|x| x as f32),
@@ -665,7 +667,7 @@ pub struct BakeFile {
     /// The compressed transfer matrix.
     pub codec: CodecBlob,
     /// Per mesh vertex, up to four (patch, weight) pairs in matrix order
-    /// ([`crate::mesh_map`]): weights ≥ 0 summing to 1, unused slots
+    /// ([`crate::bake::mesh_map`]): weights ≥ 0 summing to 1, unused slots
     /// `(0, 0.0)`; a vertex no patch could light has four unused slots.
     pub mesh_map: Vec<[(u32, f32); 4]>,
     /// Free-form bake report, JSON text.

@@ -56,7 +56,7 @@
 //! occupancy grid blocks grazing rays along every surface it contains and
 //! cannot represent sub-voxel occluders partially. The triangles are exact
 //! occluders and give fractional occlusion by thin and small objects; they
-//! cost a BVH ([`crate::bvh`]) of the scene's triangles instead of the
+//! cost a BVH ([`crate::core::bvh`]) of the scene's triangles instead of the
 //! patches' (a few more levels).
 //!
 //! The patch squares are occluders too (two triangles each in the same
@@ -110,7 +110,7 @@
 //!    angle are unaffected.
 //! 2. **Certified blocked**: each blocked ray of a pair, until the first open
 //!    one and at most [`CERT_ATTEMPTS`] times, is checked against its
-//!    triangle's occlusion certificate ([`crate::bvh::Cert`]):
+//!    triangle's occlusion certificate ([`crate::core::bvh::Cert`]):
 //!    when every segment between the emitter's sample hull and the receiver
 //!    square provably crosses that convex polygon at a counted hit (both
 //!    hulls strictly on opposite sides of its plane, all 16 corner-to-corner
@@ -151,13 +151,13 @@
 //! f32 with the kernel's exact operations so both paths evaluate the same
 //! pairs the same way.
 
-use crate::bvh::{self, Bvh, BvhStats, Cert, Node, Square, Tri};
-use crate::compute::{round_up, Access, Gpu};
-use crate::error::BakeError;
-use crate::math::{cross, dot, sub};
-use crate::npy;
-use crate::scene::Scene;
-use crate::voxelize::{Backend, Grid, Patch};
+use crate::bake::voxelize::{Backend, Grid, Patch};
+use crate::core::bvh::{self, Bvh, BvhStats, Cert, Node, Square, Tri};
+use crate::core::compute::{round_up, Access, Gpu};
+use crate::core::error::BakeError;
+use crate::core::math::{cross, dot, sub};
+use crate::core::npy;
+use crate::core::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::fmt;
@@ -165,7 +165,7 @@ use std::path::Path;
 use std::time::Instant;
 
 /// The kernel source, embedded.
-pub const KERNEL_SOURCE: &str = include_str!("../kernels/form_factor.cl");
+pub const KERNEL_SOURCE: &str = include_str!("../../kernels/form_factor.cl");
 
 /// Coplanarity and certificate margin, in voxel edges: a receiver whose
 /// centre lies less than this above the emitter's plane counts as
@@ -1431,12 +1431,12 @@ pub fn bench(
     scene_path: &Path,
     targets: &[usize],
     options: &FormFactorOptions,
-    selection: crate::compute::DeviceSelection,
+    selection: crate::core::compute::DeviceSelection,
     cpu_reference: bool,
 ) -> anyhow::Result<String> {
     use anyhow::Context as _;
     use std::fmt::Write as _;
-    let scene = crate::scene::load(scene_path)?;
+    let scene = crate::core::scene::load(scene_path)?;
     let gpu = Gpu::new(selection).context("opening the OpenCL device")?;
     let mut out = String::new();
     writeln!(
@@ -1460,9 +1460,9 @@ pub fn bench(
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     )?;
     for &target in targets {
-        let vox = crate::voxelize::voxelize(
+        let vox = crate::bake::voxelize::voxelize(
             &scene,
-            crate::voxelize::Resolution::Patches(target),
+            crate::bake::voxelize::Resolution::Patches(target),
             &Backend::OpenCl(&gpu),
         )?;
         let cl = form_factors(

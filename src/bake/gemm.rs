@@ -1,4 +1,4 @@
-//! The OpenCL matrix product behind the transfer stage ([`crate::transfer`]):
+//! The OpenCL matrix product behind the transfer stage ([`crate::bake::transfer`]):
 //! `C = D + A·B` or `C = A·B` for square row-major f32 matrices on the device,
 //! tiled in local memory, register-blocked and vectorised
 //! (`kernels/gemm.cl`), with all-zero tiles of the operands skipped.
@@ -37,9 +37,9 @@
 //! [`bench_gemm`] measures GFLOP/s against faer's f32 product in the same
 //! run.
 
-use crate::compute::{round_up, Access, DeviceInfo, Gpu};
-use crate::error::BakeError;
-use crate::voxelize::Backend;
+use crate::bake::voxelize::Backend;
+use crate::core::compute::{round_up, Access, DeviceInfo, Gpu};
+use crate::core::error::BakeError;
 use opencl3::kernel::{ExecuteKernel, Kernel};
 use opencl3::memory::Buffer;
 use serde::Serialize;
@@ -47,7 +47,7 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 /// The kernel source, embedded.
-pub const KERNEL_SOURCE: &str = include_str!("../kernels/gemm.cl");
+pub const KERNEL_SOURCE: &str = include_str!("../../kernels/gemm.cl");
 
 /// How the A block is laid out in local memory (`LAYOUT` in
 /// `kernels/gemm.cl`).
@@ -246,7 +246,7 @@ impl std::fmt::Display for GemmConfig {
 }
 
 /// The device's native float vector width, read from the device behind
-/// the queue (the one device query [`crate::compute::DeviceInfo`] does not
+/// the queue (the one device query [`crate::core::compute::DeviceInfo`] does not
 /// carry).
 fn native_float_width(gpu: &Gpu) -> u32 {
     gpu.queue()
@@ -607,7 +607,7 @@ pub fn bench_gemm(sizes: &[usize], repeat: usize, backend: &Backend) -> Result<S
     );
     let _ = writeln!(out, "|---|---|---|---|---|---|---|");
     for &n in sizes {
-        let mut rng = crate::transfer::synthetic::Rng::new(0x5eed_0000 + n as u64);
+        let mut rng = crate::bake::transfer::synthetic::Rng::new(0x5eed_0000 + n as u64);
         let a: Vec<f32> = (0..n * n).map(|_| rng.uniform() as f32).collect();
         let b: Vec<f32> = (0..n * n).map(|_| rng.uniform() as f32).collect();
         let flop = 2.0 * (n as f64).powi(3);

@@ -2,7 +2,7 @@
 //! 5): a symmetric permutation `P T Pᵀ` of the transfer matrix's rows and
 //! columns that puts similar rows (and so similar columns) next to each
 //! other, so that the 4×4 blocks of the block-compressed texture
-//! ([`crate::codec`]) hold similar values. The product is unchanged up to
+//! ([`crate::bakefile::codec`]) hold similar values. The product is unchanged up to
 //! relabelling: `(P T Pᵀ)(P B0) = P (T B0)`.
 //!
 //! Methods ([`ReorderMethod`]):
@@ -50,15 +50,15 @@
 //! consecutive feature rows before and after, the quantity the greedy chain
 //! minimises.
 
-use crate::compute::{Access, Gpu};
-use crate::error::BakeError;
-use crate::voxelize::{Backend, Patch};
+use crate::bake::voxelize::{Backend, Patch};
+use crate::core::compute::{Access, Gpu};
+use crate::core::error::BakeError;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::time::Instant;
 
 /// The kernel source, embedded.
-pub const KERNEL_SOURCE: &str = include_str!("../kernels/reorder.cl");
+pub const KERNEL_SOURCE: &str = include_str!("../../kernels/reorder.cl");
 
 /// The largest patch count the greedy method accepts: its n × 3n f32
 /// feature matrix then takes 768 MiB (host and device) and the n × n

@@ -4,9 +4,9 @@
 //! that a user can see what the simplification kept, without a GPU.
 //! Patches facing away from the camera are culled.
 
-use crate::math::{cross, dot, normalize, sub};
-use crate::scene_config::Camera;
-use crate::voxelize::Patch;
+use crate::bake::voxelize::Patch;
+use crate::core::math::{cross, dot, normalize, sub};
+use crate::core::scene_config::Camera;
 use image::{Rgb, RgbImage};
 
 /// A pinhole camera as a view basis.

@@ -24,7 +24,7 @@
 //!    surface deviates from it by its sagitta, a fraction of a voxel.
 //! 4. **Nothing lies between them**: the segment from `p + δ n` to
 //!    `c + δ N` (`δ =` [`RAY_OFFSET`]` · s`) crosses no triangle of the
-//!    original scene (the BVH of [`crate::bvh`], exact f64 segment tests).
+//!    original scene (the BVH of [`crate::core::bvh`], exact f64 segment tests).
 //!    This is what keeps light from leaking through thin walls: the walls are
 //!    in the original triangles even where the voxel grid cannot resolve
 //!    them. It is chosen over a test against other patches' planes because
@@ -88,11 +88,11 @@
 //! immutable data, candidates are sorted with ties broken by index, and
 //! rayon's ordered collect keeps vertex order.
 
-use crate::bvh::Bvh;
-use crate::error::BakeError;
-use crate::math::{cross, dot, sub};
-use crate::scene::Scene;
-use crate::voxelize::{Direction, Voxelization};
+use crate::bake::voxelize::{Direction, Voxelization};
+use crate::core::bvh::Bvh;
+use crate::core::error::BakeError;
+use crate::core::math::{cross, dot, sub};
+use crate::core::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::HashMap;
@@ -355,7 +355,7 @@ pub fn build_with(
     let bvh = Bvh::build(
         &scene.positions,
         &scene.triangles,
-        crate::form_factor::shift_of(&grid),
+        crate::bake::form_factor::shift_of(&grid),
     );
     stats.seconds_bvh = t.elapsed().as_secs_f64();
 

@@ -1,0 +1,13 @@
+//! The shared core: what both phases use. Scene loading and the camera and
+//! lights file, the patch types, vector helpers, the BVH over the scene's
+//! triangles, direct light on patches, the OpenCL layer and `.npy` files.
+//! Nothing here imports a bake stage, the bake file or the run time.
+
+pub mod bvh;
+pub mod compute;
+pub mod direct;
+pub mod error;
+pub mod math;
+pub mod npy;
+pub mod scene;
+pub mod scene_config;
