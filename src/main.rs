@@ -7,9 +7,10 @@ use clap::{Args, Parser, Subcommand};
 use radiosity::bake::form_factor::FormFactorOptions;
 use radiosity::bake::reorder::ReorderMethod;
 use radiosity::bake::transfer::{Bounces, StressCase, TransferOptions};
-use radiosity::bake::voxelize::{Backend, Resolution};
+use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
 use radiosity::bakefile::codec::CodecKind;
+use radiosity::core::compute::Backend;
 use radiosity::core::compute::Gpu;
 use radiosity::core::compute::{self, DeviceSelection};
 use radiosity::{

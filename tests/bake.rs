@@ -8,12 +8,14 @@
 
 mod common;
 
-use radiosity::bake::reorder::{Permutation, ReorderMethod};
+use radiosity::bake::reorder::ReorderMethod;
+
 use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::{self, BakeConfig, BakeOutput, CodecChoice, ComputeChoice};
 use radiosity::bakefile;
 use radiosity::bakefile::codec::{self, CodecKind, Encoded};
 use radiosity::core::compute::DeviceSelection;
+use radiosity::core::permutation::Permutation;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 

@@ -6,8 +6,9 @@
 //! sections).
 
 use radiosity::bake::reorder::{self, ReorderMethod};
-use radiosity::bake::voxelize::{Backend, Patch};
 use radiosity::bakefile::codec::{self, synthetic, CodecKind, DenseFormat, Encoded, SparseValues};
+use radiosity::core::compute::Backend;
+use radiosity::core::patch::Patch;
 
 fn refs(t: &[Vec<f32>; 3]) -> [&[f32]; 3] {
     [&t[0][..], &t[1][..], &t[2][..]]

@@ -4,14 +4,15 @@
 mod common;
 
 use common::{quad, write_quads};
-use radiosity::bake::voxelize::{voxelize_at, Backend};
+use radiosity::bake::voxelize::voxelize_at;
+use radiosity::core::compute::Backend;
 use radiosity::core::direct::{exitance, random_lights, DirectLight};
 use radiosity::core::scene;
 use radiosity::core::scene_config::Light;
 
 /// A 1 × 1 floor at y = 0 (facing up), voxel size 0.25 (16 patches), and
 /// optionally a 0.5 × 1 roof at y = 0.5 over its x < 0 half (facing down).
-fn floor(with_roof: bool) -> (scene::Scene, Vec<radiosity::bake::voxelize::Patch>) {
+fn floor(with_roof: bool) -> (scene::Scene, Vec<radiosity::core::patch::Patch>) {
     let up = quad(
         [0.0, 0.0, 0.0],
         [0.0, 0.0, 1.0],

@@ -10,8 +10,12 @@ mod common;
 
 use common::{gpu, quad, temp_dir, write_quads, Quad};
 use radiosity::bake::form_factor::{self, FormFactorOptions, FormFactors};
-use radiosity::bake::voxelize::{self, Backend, Direction, Grid, Patch, Voxelization};
+use radiosity::bake::voxelize::{self, Voxelization};
+use radiosity::core::compute::Backend;
 use radiosity::core::npy;
+use radiosity::core::patch::Direction;
+use radiosity::core::patch::Grid;
+use radiosity::core::patch::Patch;
 use radiosity::core::scene::{self, Scene};
 use radiosity::generate;
 use std::path::PathBuf;

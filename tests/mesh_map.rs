@@ -7,7 +7,8 @@
 mod common;
 
 use radiosity::bake::mesh_map::{self, MeshMap, MeshMapOptions};
-use radiosity::bake::voxelize::{voxelize_at, Backend, Voxelization};
+use radiosity::bake::voxelize::{voxelize_at, Voxelization};
+use radiosity::core::compute::Backend;
 use radiosity::core::scene::{self, Scene};
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -217,7 +218,7 @@ fn thin_wall_vertices_take_light_only_from_their_own_side() {
     for (v, row) in map.entries.iter().enumerate() {
         let p = scene.positions[v];
         let n = normals[v];
-        let used: Vec<&radiosity::bake::voxelize::Patch> = row
+        let used: Vec<&radiosity::core::patch::Patch> = row
             .iter()
             .filter(|s| s.1 > 0.0)
             .map(|s| &vox.patches[s.0 as usize])

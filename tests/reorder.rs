@@ -4,9 +4,11 @@
 
 mod common;
 
-use radiosity::bake::reorder::{self, Features, Permutation, ReorderMethod};
-use radiosity::bake::voxelize::Backend;
+use radiosity::bake::reorder::{self, Features, ReorderMethod};
+
 use radiosity::bakefile::codec::{self, synthetic, CodecKind, SparseValues};
+use radiosity::core::compute::Backend;
+use radiosity::core::permutation::Permutation;
 
 /// A seeded random permutation of `n` (Fisher–Yates).
 fn shuffle(n: usize, seed: u64) -> Permutation {

@@ -6,7 +6,7 @@ mod common;
 
 use radiosity::bake::gemm::{self, Gemm, GemmConfig, Layout};
 use radiosity::bake::transfer::{self, synthetic, Bounces, Transfer, TransferOptions};
-use radiosity::bake::voxelize::Backend;
+use radiosity::core::compute::Backend;
 use radiosity::core::error::BakeError;
 
 /// f32 unit roundoff.

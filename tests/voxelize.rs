@@ -7,10 +7,13 @@ mod common;
 
 use common::{gpu, quad, write_quads, Quad};
 use radiosity::bake::voxelize::{
-    self, cl_pieces, compare, compare_pieces, cpu_pieces, grid_coords, voxelize_at, Backend,
-    Direction, Grid, Resolution, Voxelization,
+    self, cl_pieces, compare, compare_pieces, cpu_pieces, grid_coords, voxelize_at, Resolution,
+    Voxelization,
 };
+use radiosity::core::compute::Backend;
 use radiosity::core::math::{cross, dot, normalize as norm};
+use radiosity::core::patch::Direction;
+use radiosity::core::patch::Grid;
 use radiosity::core::scene;
 
 /// f32 rounding of grid coordinates: a coordinate of magnitude up to
@@ -124,7 +127,7 @@ fn opencl_voxelization_is_deterministic() {
 }
 
 /// Patches whose voxel lies within the plate's footprint, by plate.
-fn plate_patches(v: &Voxelization, normal: [f64; 3]) -> Vec<&voxelize::Patch> {
+fn plate_patches(v: &Voxelization, normal: [f64; 3]) -> Vec<&radiosity::core::patch::Patch> {
     v.patches
         .iter()
         .filter(|p| dot(p.normal, normal) > 0.999)

@@ -151,12 +151,17 @@
 //! f32 with the kernel's exact operations so both paths evaluate the same
 //! pairs the same way.
 
-use crate::bake::voxelize::{Backend, Grid, Patch};
+use crate::core::compute::Backend;
+
+use crate::core::patch::Grid;
+
 use crate::core::bvh::{self, Bvh, BvhStats, Cert, Node, Square, Tri};
 use crate::core::compute::{round_up, Access, Gpu};
 use crate::core::error::BakeError;
-use crate::core::math::{cross, dot, sub};
+use crate::core::math::{add, cross, dot, f64s, scale, sub, unit};
 use crate::core::npy;
+use crate::core::patch::Patch;
+use crate::core::patch::CORNERS;
 use crate::core::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -447,44 +452,6 @@ pub struct Prepared {
     pub gauss: Vec<Vec<(f64, f64)>>,
 }
 
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-fn unit(a: [f64; 3]) -> [f64; 3] {
-    scale(a, 1.0 / dot(a, a).sqrt())
-}
-fn f64s(v: [f32; 3]) -> [f64; 3] {
-    v.map(f64::from)
-}
-
-/// The square of a patch (see the module doc): in-plane axes `u`, `v` with
-/// `u × v = n`, and half side. World coordinates, f64.
-pub fn patch_square(p: &Patch) -> ([f64; 3], [f64; 3], f64) {
-    let n = unit(p.normal);
-    let a = p.direction.axis();
-    let mut u = [0.0; 3];
-    for step in 1..3 {
-        let mut t = [0.0; 3];
-        t[(a + step) % 3] = 1.0;
-        let cand = sub(t, scale(n, dot(t, n)));
-        // The patch normal is dominated by axis a, so the next axis is never
-        // (nearly) parallel to it; the loop is a guard.
-        if dot(cand, cand) > 1e-12 {
-            u = unit(cand);
-            break;
-        }
-    }
-    let v = cross(n, u);
-    (u, v, 0.5 * p.area.max(0.0).sqrt())
-}
-
-/// The four corners of a patch square, in the order the kernel uses:
-/// (−u −v), (−u +v), (+u +v), (+u −v).
-pub const CORNERS: [(f64, f64); 4] = [(-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0)];
-
 /// The shift point: the grid's centre (coordinates relative to it have the
 /// smallest f32 rounding error).
 pub fn shift_of(grid: &Grid) -> [f64; 3] {
@@ -499,7 +466,8 @@ pub fn prepare_patches(patches: &[Patch], grid: &Grid) -> Vec<ClPatch> {
     patches
         .iter()
         .map(|p| {
-            let (u, v, h) = patch_square(p);
+            let fr = p.frame();
+            let (u, v, h) = (fr.u, fr.v, fr.half);
             let mut lo: [f64; 3] =
                 std::array::from_fn(|k| grid.origin[k] + grid.size * p.voxel[k] as f64);
             let mut hi: [f64; 3] = std::array::from_fn(|k| lo[k] + grid.size);
@@ -557,7 +525,8 @@ pub fn prepare(
     let squares: Vec<Square> = patches
         .iter()
         .map(|p| {
-            let (u, v, h) = patch_square(p);
+            let fr = p.frame();
+            let (u, v, h) = (fr.u, fr.v, fr.half);
             // Counter-clockwise around the normal (u × v = n).
             let corner = |su: f64, sv: f64| add(p.centre, add(scale(u, su * h), scale(v, sv * h)));
             Square {

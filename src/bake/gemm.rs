@@ -37,7 +37,7 @@
 //! [`bench_gemm`] measures GFLOP/s against faer's f32 product in the same
 //! run.
 
-use crate::bake::voxelize::Backend;
+use crate::core::compute::Backend;
 use crate::core::compute::{round_up, Access, DeviceInfo, Gpu};
 use crate::core::error::BakeError;
 use opencl3::kernel::{ExecuteKernel, Kernel};

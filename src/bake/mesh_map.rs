@@ -88,10 +88,12 @@
 //! immutable data, candidates are sorted with ties broken by index, and
 //! rayon's ordered collect keeps vertex order.
 
-use crate::bake::voxelize::{Direction, Voxelization};
+use crate::bake::voxelize::Voxelization;
+
 use crate::core::bvh::Bvh;
 use crate::core::error::BakeError;
-use crate::core::math::{cross, dot, sub};
+use crate::core::math::{add, cross, dot, norm, scale, sub, tangent_basis};
+use crate::core::patch::Direction;
 use crate::core::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -241,16 +243,6 @@ impl MeshMap {
             })
             .collect()
     }
-}
-
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    a.map(|x| x * s)
-}
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
 }
 
 /// Builds the map with the default options. `patch_index_of[i]` is the
@@ -684,19 +676,6 @@ fn weights(ctx: &Ctx, p: [f64; 3], n: [f64; 3], kept: &[(f64, u32)]) -> ([(u32, 
     // Exact for every linear field only when the centres spread in both
     // tangent directions and the full step was taken.
     (row, spread && step >= 1.0)
-}
-
-/// Two unit vectors completing `n` to an orthonormal basis (Frisvad's
-/// branch-free construction as revised by Duff et al., "Building an
-/// Orthonormal Basis, Revisited", JCGT 2017).
-fn tangent_basis(n: [f64; 3]) -> ([f64; 3], [f64; 3]) {
-    let sign = 1f64.copysign(n[2]);
-    let a = -1.0 / (sign + n[2]);
-    let b = n[0] * n[1] * a;
-    (
-        [1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]],
-        [b, sign + n[1] * n[1] * a, -n[1]],
-    )
 }
 
 /// Eigenvalues (largest first) and unit eigenvectors of a symmetric 2×2

@@ -20,21 +20,24 @@ pub mod voxelize;
 
 use crate::bakefile::codec::{self, CodecKind, Encoded};
 use crate::bakefile::{self, BakeFile, PatchRecord, SceneHash};
+use crate::core::compute::Backend;
 use crate::core::compute::{DeviceSelection, Gpu};
 use crate::core::direct;
 use crate::core::error::BakeError;
 use crate::core::npy;
+use crate::core::patch::Patch;
+use crate::core::permutation::Permutation;
 use crate::core::scene::{self, SceneSummary};
 use anyhow::Context as _;
 use form_factor::{FormFactorOptions, FormFactorStats, FormFactors};
 use mesh_map::MeshMapStats;
-use reorder::{Permutation, ReorderMethod, ReorderStats};
+use reorder::{ReorderMethod, ReorderStats};
 use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use transfer::{Bounces, Transfer, TransferOptions, TransferStats};
-use voxelize::{Backend, Patch, Resolution, VoxelStats};
+use voxelize::{Resolution, VoxelStats};
 
 /// Where the bake's OpenCL stages run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -766,7 +769,7 @@ impl std::fmt::Display for BakeReport {
             v.sliver_pieces,
             v.sliver_area
         )?;
-        let per_dir: Vec<String> = crate::bake::voxelize::Direction::ALL
+        let per_dir: Vec<String> = crate::core::patch::Direction::ALL
             .iter()
             .map(|d| format!("{} {}", d.name(), v.patches_per_direction[*d as usize]))
             .collect();
@@ -780,7 +783,7 @@ impl std::fmt::Display for BakeReport {
             v.merged_groups,
             v.covered_groups,
             v.covered_area,
-            crate::bake::voxelize::Direction::ALL
+            crate::core::patch::Direction::ALL
                 .iter()
                 .map(|d| format!("{} {:.3e}", d.name(), v.covered_area_per_direction[*d as usize]))
                 .collect::<Vec<_>>()

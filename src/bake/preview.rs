@@ -4,8 +4,9 @@
 //! that a user can see what the simplification kept, without a GPU.
 //! Patches facing away from the camera are culled.
 
-use crate::bake::voxelize::Patch;
 use crate::core::math::{cross, dot, normalize, sub};
+use crate::core::patch::Patch;
+use crate::core::patch::CORNERS;
 use crate::core::scene_config::Camera;
 use image::{Rgb, RgbImage};
 
@@ -68,18 +69,11 @@ pub fn render_patches(patches: &[Patch], camera: &Camera, width: u32, height: u3
     let aspect = width as f64 / height as f64;
     for p in patches {
         // The patch's square, in its plane, of side sqrt(area).
-        let n = p.normal;
-        let helper = if n[0].abs() < 0.9 {
-            [1.0, 0.0, 0.0]
-        } else {
-            [0.0, 1.0, 0.0]
-        };
-        let u = normalize(cross(n, helper));
-        let v = cross(n, u);
-        let half = 0.5 * p.area.sqrt();
-        let corners: Vec<[f64; 3]> = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+        let frame = p.frame();
+        let n = frame.n;
+        let corners: Vec<[f64; 3]> = CORNERS
             .iter()
-            .map(|&(a, b)| std::array::from_fn(|k| p.centre[k] + half * (a * u[k] + b * v[k])))
+            .map(|&(a, b)| p.point(&frame, a, b))
             .collect();
         // Screen positions; skip patches reaching behind the eye.
         let mut screen = [[0.0f64; 3]; 4];

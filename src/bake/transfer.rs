@@ -72,7 +72,7 @@
 //! (faer).
 
 use crate::bake::gemm::{DeviceMatrix, Gemm, GemmConfig, GemmRun};
-use crate::bake::voxelize::Backend;
+use crate::core::compute::Backend;
 use crate::core::error::BakeError;
 use faer::linalg::solvers::Solve as _;
 use serde::Serialize;

@@ -48,9 +48,10 @@
 //! Memory is proportional to the number of pieces (occupied voxels times
 //! triangles per voxel), never to the grid volume.
 
-use crate::core::compute::{round_up, Access, Gpu};
+use crate::core::compute::{round_up, Access, Backend, Gpu};
 use crate::core::error::BakeError;
 use crate::core::math::{cross, dot, sub};
+use crate::core::patch::{Direction, Grid, Patch};
 use crate::core::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -65,145 +66,11 @@ pub const KERNEL_SOURCE: &str = include_str!("../../kernels/voxelize.cl");
 /// `MAX_DIM`, whose f32 rounding error is below 2.5e-4 voxels).
 pub const SAT_HALF: f64 = 0.5005;
 
-/// Most voxels along one axis: beyond 4096, f32 grid coordinates carry
-/// rounding errors above the overlap test's margin.
-pub const MAX_DIM: u32 = 4096;
-
 /// Pieces smaller than this (in voxel-face units) occupy no voxel: such
 /// slivers come from a triangle grazing a voxel edge, and a value far above
 /// f32 rounding of a piece's area (~1e-7) keeps the OpenCL and CPU results
 /// in agreement.
 pub const MIN_PIECE_AREA: f64 = 1e-6;
-
-/// One of the six axis directions a patch can face.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
-pub enum Direction {
-    PosX = 0,
-    NegX = 1,
-    PosY = 2,
-    NegY = 3,
-    PosZ = 4,
-    NegZ = 5,
-}
-
-impl Direction {
-    pub const ALL: [Direction; 6] = [
-        Direction::PosX,
-        Direction::NegX,
-        Direction::PosY,
-        Direction::NegY,
-        Direction::PosZ,
-        Direction::NegZ,
-    ];
-
-    /// The axis (0 = x, 1 = y, 2 = z).
-    pub fn axis(self) -> usize {
-        self as usize / 2
-    }
-
-    /// +1 or −1.
-    pub fn sign(self) -> i64 {
-        if (self as usize).is_multiple_of(2) {
-            1
-        } else {
-            -1
-        }
-    }
-
-    /// The unit vector.
-    pub fn vector(self) -> [f64; 3] {
-        let mut v = [0.0; 3];
-        v[self.axis()] = self.sign() as f64;
-        v
-    }
-
-    /// The signed axis of the largest component of `n` (ties go to the lower
-    /// axis, so the choice is deterministic).
-    pub fn dominant(n: [f64; 3]) -> Direction {
-        let a = n.map(f64::abs);
-        let axis = if a[0] >= a[1] && a[0] >= a[2] {
-            0
-        } else if a[1] >= a[2] {
-            1
-        } else {
-            2
-        };
-        Direction::ALL[2 * axis + usize::from(n[axis] < 0.0)]
-    }
-
-    /// The direction facing the other way.
-    pub fn opposite(self) -> Direction {
-        Direction::ALL[self as usize ^ 1]
-    }
-
-    pub fn name(self) -> &'static str {
-        ["+x", "-x", "+y", "-y", "+z", "-z"][self as usize]
-    }
-}
-
-/// The voxel grid: boundaries at integer multiples of `size` in world space,
-/// with one empty layer of padding around the scene's bounds.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct Grid {
-    /// World position of voxel (0, 0, 0)'s minimum corner.
-    pub origin: [f64; 3],
-    /// Edge length of a voxel (scene units).
-    pub size: f64,
-    /// Voxels along each axis.
-    pub dims: [u32; 3],
-}
-
-impl Grid {
-    /// The grid of voxel size `size` covering `bounds`.
-    pub fn new(bounds: ([f32; 3], [f32; 3]), size: f64) -> Result<Grid, BakeError> {
-        if !(size.is_finite() && size > 0.0) {
-            return Err(BakeError::Options(format!(
-                "voxel size must be a positive number, got {size}"
-            )));
-        }
-        let mut origin = [0.0; 3];
-        let mut dims = [0u32; 3];
-        for a in 0..3 {
-            let lo = (bounds.0[a] as f64 / size).floor() - 1.0;
-            let hi = (bounds.1[a] as f64 / size).floor() + 1.0;
-            let n = hi - lo + 1.0;
-            if n > MAX_DIM as f64 {
-                return Err(BakeError::Options(format!(
-                    "voxel size {size} is too small for this scene: {n} voxels along {} \
-                     (at most {MAX_DIM}); use a larger --voxel-size or fewer --patches",
-                    ["x", "y", "z"][a]
-                )));
-            }
-            origin[a] = lo * size;
-            dims[a] = n as u32;
-        }
-        Ok(Grid { origin, size, dims })
-    }
-
-    /// Grid coordinates of a world point (voxel (i, j, k) spans [i, i + 1]…).
-    /// Computed as `p / size − lo` so that points on a voxel boundary at an
-    /// exact multiple of a power-of-two size map to exact integers.
-    pub fn to_grid(&self, p: [f32; 3]) -> [f64; 3] {
-        std::array::from_fn(|a| p[a] as f64 / self.size - self.origin[a] / self.size)
-    }
-
-    /// Linear key of a voxel.
-    pub fn key(&self, v: [u32; 3]) -> u64 {
-        v[0] as u64 + self.dims[0] as u64 * (v[1] as u64 + self.dims[1] as u64 * v[2] as u64)
-    }
-
-    /// The neighbour of `v` in direction `d`, if inside the grid.
-    pub fn neighbour(&self, v: [u32; 3], d: Direction) -> Option<[u32; 3]> {
-        let mut n = v;
-        let a = d.axis();
-        let c = v[a] as i64 + d.sign();
-        if c < 0 || c >= self.dims[a] as i64 {
-            return None;
-        }
-        n[a] = c as u32;
-        Some(n)
-    }
-}
 
 /// How the voxel size is chosen.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -212,14 +79,6 @@ pub enum Resolution {
     VoxelSize(f64),
     /// A target patch count: the voxel size is searched for (a few passes).
     Patches(usize),
-}
-
-/// Where the pieces are computed.
-pub enum Backend<'a> {
-    /// The f64 CPU reference (rayon over triangles).
-    Cpu,
-    /// The OpenCL kernel on a device.
-    OpenCl(&'a Gpu),
 }
 
 /// One piece: the part of a triangle inside one voxel. `area` is in
@@ -241,24 +100,6 @@ pub struct Piece {
     pub voxel: [u32; 3],
     pub area: f64,
     pub centroid: [f64; 3],
-}
-
-/// A patch: the simplified surface of one voxel facing one direction.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Patch {
-    /// Centre `c_i` (world units), in the mean plane of its geometry.
-    pub centre: [f64; 3],
-    /// Unit normal `N_i` of the mean plane.
-    pub normal: [f64; 3],
-    /// Area `A_i`: the geometry's area projected onto the mean plane.
-    pub area: f64,
-    /// Linear RGB albedo `ρ_i`.
-    pub albedo: [f64; 3],
-    /// Emitted exitance `E_i`.
-    pub emission: [f64; 3],
-    /// The voxel the patch came from.
-    pub voxel: [u32; 3],
-    pub direction: Direction,
 }
 
 /// Counts and times of one voxelization, for the bake summary.

@@ -580,7 +580,7 @@ fn hash_stream(mut r: impl Read, h: &mut Fnv1a64) -> io::Result<u64> {
     }
 }
 
-/// One patch as stored: the f32 rounding of [`crate::bake::voxelize::Patch`]'s
+/// One patch as stored: the f32 rounding of [`crate::core::patch::Patch`]'s
 /// centre `c_i`, unit normal `N_i`, area `A_i`, albedo `ρ_i` and emission
 /// `E_i` (DESIGN.md section 2), in matrix order.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
@@ -592,8 +592,8 @@ pub struct PatchRecord {
     pub emission: [f32; 3],
 }
 
-impl From<&crate::bake::voxelize::Patch> for PatchRecord {
-    fn from(p: &crate::bake::voxelize::Patch) -> PatchRecord {
+impl From<&crate::core::patch::Patch> for PatchRecord {
+    fn from(p: &crate::core::patch::Patch) -> PatchRecord {
         PatchRecord {
             centre: p.centre.map(|x| x as f32),
             normal: p.normal.map(|x| x as f32),

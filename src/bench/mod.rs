@@ -5,9 +5,10 @@
 //! ratios within one run.
 
 use crate::bake::reorder::ReorderMethod;
-use crate::bake::voxelize::{self, Backend, Resolution};
+use crate::bake::voxelize::{self, Resolution};
 use crate::bake::{self, BakeConfig};
 use crate::bakefile::codec::{self, CodecKind, ReportRow, SparseValues, LOG_RANGE_AUTO};
+use crate::core::compute::Backend;
 use crate::core::compute::{DeviceSelection, Gpu};
 use crate::core::direct;
 use crate::core::error::BakeError;

@@ -38,8 +38,8 @@
 //! the square lies on, when there is one (any real blocking polygon is a
 //! valid certificate, whichever triangle the ray hit).
 
-use crate::bake::voxelize::Direction;
-use crate::core::math::{cross, dot, sub};
+use crate::core::math::{cross, dot, f64s, sub};
+use crate::core::patch::Direction;
 use std::collections::HashMap;
 use std::time::Instant;
 
@@ -156,10 +156,6 @@ pub struct Bvh {
     /// World position subtracted from every coordinate.
     pub shift: [f64; 3],
     pub stats: BvhStats,
-}
-
-fn f64s(v: [f32; 3]) -> [f64; 3] {
-    v.map(f64::from)
 }
 
 #[derive(Clone, Copy)]

@@ -393,3 +393,35 @@ impl Gpu {
 pub fn round_up(n: usize, local: usize) -> usize {
     n.div_ceil(local).max(1) * local
 }
+
+/// Where a stage runs: the f64 CPU reference, or an OpenCL device.
+pub enum Backend<'a> {
+    /// The CPU reference implementation (rayon, f64).
+    Cpu,
+    /// An OpenCL device.
+    OpenCl(&'a Gpu),
+}
+
+impl Backend<'_> {
+    /// A copy of the selection (`Backend` borrows the device; this is not
+    /// `Copy` only because it need not be).
+    pub fn reborrow(&self) -> Backend<'_> {
+        match self {
+            Backend::Cpu => Backend::Cpu,
+            Backend::OpenCl(g) => Backend::OpenCl(g),
+        }
+    }
+
+    /// The device's name for reports.
+    pub fn device_name(&self) -> String {
+        match self {
+            Backend::OpenCl(g) => format!(
+                "{} ({}, {})",
+                g.info().name,
+                g.info().kind,
+                g.info().platform
+            ),
+            Backend::Cpu => "CPU reference (f64)".to_string(),
+        }
+    }
+}

@@ -6,16 +6,12 @@
 //! be compared with, and the source of the seeded random lights that the
 //! compression report measures `H = T̃ · B0` over.
 
-use crate::bake::voxelize::Patch;
 use crate::core::bvh::Bvh;
-use crate::core::math::{cross, dot, normalize, sub, SplitMix64};
+use crate::core::math::{add, dot, f64s, normalize, scale, sub, SplitMix64};
+use crate::core::patch::Patch;
 use crate::core::scene::Scene;
 use crate::core::scene_config::Light;
 use rayon::prelude::*;
-
-fn f64s(v: [f32; 3]) -> [f64; 3] {
-    v.map(|x| x as f64)
-}
 
 /// Shadow rays per patch and light: a 2 × 2 stratified grid over the
 /// patch's square, so partly shadowed patches get fractional light.
@@ -57,22 +53,12 @@ impl DirectLight {
         patches
             .par_iter()
             .map(|p| {
-                let n = p.normal;
-                let helper = if n[0].abs() < 0.9 {
-                    [1.0, 0.0, 0.0]
-                } else {
-                    [0.0, 1.0, 0.0]
-                };
-                let u = normalize(cross(n, helper));
-                let v = cross(n, u);
-                let h = 0.25 * p.area.sqrt();
-                let points: Vec<[f64; 3]> = [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)]
+                let frame = p.frame();
+                let n = frame.n;
+                // The centres of the square's 2 × 2 quadrants.
+                let points: Vec<[f64; 3]> = [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]
                     .iter()
-                    .map(|&(a, b)| {
-                        std::array::from_fn(|k| {
-                            p.centre[k] + h * (a * u[k] + b * v[k]) + self.offset * n[k]
-                        })
-                    })
+                    .map(|&(a, b)| add(p.point(&frame, a, b), scale(n, self.offset)))
                     .collect();
                 let mut d = [0.0; 3];
                 for light in lights {

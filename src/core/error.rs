@@ -72,4 +72,25 @@ pub enum BakeError {
     },
     #[error(transparent)]
     Cl(#[from] ClError),
+    #[error(transparent)]
+    Grid(#[from] GridError),
+    #[error(transparent)]
+    Permutation(#[from] crate::core::permutation::PermutationError),
+}
+
+/// A voxel grid that cannot be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GridError {
+    #[error("voxel size must be a positive finite number, got {0}")]
+    VoxelSize(f64),
+    #[error(
+        "voxel size {size} is too small for this scene: {voxels} voxels along {axis} (at most \
+         {max}); a larger voxel size or fewer patches fits"
+    )]
+    TooFine {
+        size: f64,
+        voxels: f64,
+        axis: char,
+        max: u32,
+    },
 }

@@ -51,3 +51,42 @@ impl SplitMix64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 }
+
+/// `a + b`.
+pub fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+/// `s a`.
+pub fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+
+/// `|a|`.
+pub fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+/// `a / |a|`, computed as a multiplication by `1 / |a|` (the form-factor
+/// kernel's rounding; [`normalize`] divides).
+pub fn unit(a: [f64; 3]) -> [f64; 3] {
+    scale(a, 1.0 / dot(a, a).sqrt())
+}
+
+/// An `[f32; 3]` widened to f64.
+pub fn f64s(v: [f32; 3]) -> [f64; 3] {
+    v.map(f64::from)
+}
+
+/// An orthonormal tangent basis `(t, b)` of the unit vector `n`, with
+/// `t × b = n`, continuous except at `n_z = −1`'s sign flip: Duff et al.,
+/// "Building an Orthonormal Basis, Revisited", JCGT 6(1), 2017.
+pub fn tangent_basis(n: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+    let sign = 1f64.copysign(n[2]);
+    let a = -1.0 / (sign + n[2]);
+    let b = n[0] * n[1] * a;
+    (
+        [1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]],
+        [b, sign + n[1] * n[1] * a, -n[1]],
+    )
+}

@@ -9,5 +9,7 @@ pub mod direct;
 pub mod error;
 pub mod math;
 pub mod npy;
+pub mod patch;
+pub mod permutation;
 pub mod scene;
 pub mod scene_config;

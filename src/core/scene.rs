@@ -32,7 +32,7 @@ use std::io::{self, BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
 use crate::core::error::SceneError;
-use crate::core::math::{cross, dot, sub};
+use crate::core::math::{add, cross, dot, norm, sub};
 
 /// Albedo components are clamped to at most this value: every `ρ < 1` keeps
 /// `T_∞ = F (I − diag(ρ) F)^{-1}` finite, and 0.99 bounds the infinite-bounce
@@ -1471,16 +1471,6 @@ fn mean_u8(samples: &[u8], stride: usize, colour: usize) -> [f64; 3] {
     } else {
         [means[0], means[1], means[2]]
     }
-}
-
-// Small f64 vector helpers.
-
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
 }
 
 #[cfg(test)]

@@ -145,9 +145,12 @@
 //! times for every reordering and codec. [`synthetic`] builds test
 //! matrices with the structure of real ones.
 
-use crate::bake::reorder::{self, Permutation, ReorderMethod};
-use crate::bake::voxelize::{Backend, Patch};
+use crate::bake::reorder::{self, ReorderMethod};
+
+use crate::core::compute::Backend;
 use crate::core::error::BakeError;
+use crate::core::patch::Patch;
+use crate::core::permutation::Permutation;
 use half::f16;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -2794,7 +2797,8 @@ impl Encoded {
 /// between coplanar patches, row sums ≤ 1). `T_∞ = F (I − diag(ρ) F)^{-1}`
 /// per channel, solved in f64 with faer.
 pub mod synthetic {
-    use crate::bake::voxelize::{Direction, Patch};
+    use crate::core::patch::Direction;
+    use crate::core::patch::Patch;
     use faer::linalg::solvers::Solve as _;
     use rayon::prelude::*;
 

@@ -1,0 +1,214 @@
+//! Patches, the unit both phases share (DESIGN.md section 2): a patch is
+//! the simplified surface of one voxel facing one of the six axis
+//! [`Direction`]s, with a centre, a unit normal, an area, an albedo and an
+//! emission. [`Grid`] is the voxel grid the patches come from, and
+//! [`Patch::frame`] the one definition of a patch's shape and tangent frame
+//! — the square of its area in its plane, with edges along the grid axes
+//! projected into that plane — that form factors, direct light, the preview
+//! and the shaders use.
+
+use crate::core::error::GridError;
+use crate::core::math::{cross, dot, scale, sub, unit};
+use serde::Serialize;
+
+/// Most voxels along one axis: beyond 4096, f32 grid coordinates carry
+/// rounding errors above the voxelizer's overlap-test margin
+/// (`bake::voxelize::SAT_HALF`).
+pub const MAX_DIM: u32 = 4096;
+
+/// One of the six axis directions a patch can face.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+pub enum Direction {
+    PosX = 0,
+    NegX = 1,
+    PosY = 2,
+    NegY = 3,
+    PosZ = 4,
+    NegZ = 5,
+}
+
+impl Direction {
+    pub const ALL: [Direction; 6] = [
+        Direction::PosX,
+        Direction::NegX,
+        Direction::PosY,
+        Direction::NegY,
+        Direction::PosZ,
+        Direction::NegZ,
+    ];
+
+    /// The axis (0 = x, 1 = y, 2 = z).
+    pub fn axis(self) -> usize {
+        self as usize / 2
+    }
+
+    /// +1 or −1.
+    pub fn sign(self) -> i64 {
+        if (self as usize).is_multiple_of(2) {
+            1
+        } else {
+            -1
+        }
+    }
+
+    /// The unit vector.
+    pub fn vector(self) -> [f64; 3] {
+        let mut v = [0.0; 3];
+        v[self.axis()] = self.sign() as f64;
+        v
+    }
+
+    /// The signed axis of the largest component of `n` (ties go to the lower
+    /// axis, so the choice is deterministic).
+    pub fn dominant(n: [f64; 3]) -> Direction {
+        let a = n.map(f64::abs);
+        let axis = if a[0] >= a[1] && a[0] >= a[2] {
+            0
+        } else if a[1] >= a[2] {
+            1
+        } else {
+            2
+        };
+        Direction::ALL[2 * axis + usize::from(n[axis] < 0.0)]
+    }
+
+    /// The direction facing the other way.
+    pub fn opposite(self) -> Direction {
+        Direction::ALL[self as usize ^ 1]
+    }
+
+    pub fn name(self) -> &'static str {
+        ["+x", "-x", "+y", "-y", "+z", "-z"][self as usize]
+    }
+}
+
+/// The voxel grid: boundaries at integer multiples of `size` in world space,
+/// with one empty layer of padding around the scene's bounds.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Grid {
+    /// World position of voxel (0, 0, 0)'s minimum corner.
+    pub origin: [f64; 3],
+    /// Edge length of a voxel (scene units).
+    pub size: f64,
+    /// Voxels along each axis.
+    pub dims: [u32; 3],
+}
+
+impl Grid {
+    /// The grid of voxel size `size` covering `bounds`.
+    pub fn new(bounds: ([f32; 3], [f32; 3]), size: f64) -> Result<Grid, GridError> {
+        if !(size.is_finite() && size > 0.0) {
+            return Err(GridError::VoxelSize(size));
+        }
+        let mut origin = [0.0; 3];
+        let mut dims = [0u32; 3];
+        for a in 0..3 {
+            let lo = (bounds.0[a] as f64 / size).floor() - 1.0;
+            let hi = (bounds.1[a] as f64 / size).floor() + 1.0;
+            let n = hi - lo + 1.0;
+            if n > MAX_DIM as f64 {
+                return Err(GridError::TooFine {
+                    size,
+                    voxels: n,
+                    axis: ['x', 'y', 'z'][a],
+                    max: MAX_DIM,
+                });
+            }
+            origin[a] = lo * size;
+            dims[a] = n as u32;
+        }
+        Ok(Grid { origin, size, dims })
+    }
+
+    /// Grid coordinates of a world point (voxel (i, j, k) spans [i, i + 1]…).
+    /// Computed as `p / size − lo` so that points on a voxel boundary at an
+    /// exact multiple of a power-of-two size map to exact integers.
+    pub fn to_grid(&self, p: [f32; 3]) -> [f64; 3] {
+        std::array::from_fn(|a| p[a] as f64 / self.size - self.origin[a] / self.size)
+    }
+
+    /// Linear key of a voxel.
+    pub fn key(&self, v: [u32; 3]) -> u64 {
+        v[0] as u64 + self.dims[0] as u64 * (v[1] as u64 + self.dims[1] as u64 * v[2] as u64)
+    }
+
+    /// The neighbour of `v` in direction `d`, if inside the grid.
+    pub fn neighbour(&self, v: [u32; 3], d: Direction) -> Option<[u32; 3]> {
+        let mut n = v;
+        let a = d.axis();
+        let c = v[a] as i64 + d.sign();
+        if c < 0 || c >= self.dims[a] as i64 {
+            return None;
+        }
+        n[a] = c as u32;
+        Some(n)
+    }
+}
+
+/// A patch: the simplified surface of one voxel facing one direction.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Patch {
+    /// Centre `c_i` (world units), in the mean plane of its geometry.
+    pub centre: [f64; 3],
+    /// Unit normal `N_i` of the mean plane.
+    pub normal: [f64; 3],
+    /// Area `A_i`: the geometry's area projected onto the mean plane.
+    pub area: f64,
+    /// Linear RGB albedo `ρ_i`.
+    pub albedo: [f64; 3],
+    /// Emitted exitance `E_i`.
+    pub emission: [f64; 3],
+    /// The voxel the patch came from.
+    pub voxel: [u32; 3],
+    pub direction: Direction,
+}
+
+/// A patch's square in its plane (module doc): in-plane unit axes `u`, `v`
+/// with `u × v = n`, and the half side `√A / 2`. World coordinates, f64.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PatchFrame {
+    pub u: [f64; 3],
+    pub v: [f64; 3],
+    pub n: [f64; 3],
+    pub half: f64,
+}
+
+/// The four corners of a patch square in units of the half side, in the
+/// order the form-factor kernel uses: (−u −v), (−u +v), (+u +v), (+u −v).
+pub const CORNERS: [(f64, f64); 4] = [(-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0)];
+
+impl Patch {
+    /// The patch's square (module doc). `u` is the grid axis after the
+    /// patch's facing axis, made orthogonal to the normal; `v = n × u`. For
+    /// a patch of a surface aligned with the grid this is exactly the voxel
+    /// face scaled to the patch's area, so full patches of a grid-aligned
+    /// plate tile it without gap or overlap. Deterministic, from the patch
+    /// alone.
+    pub fn frame(&self) -> PatchFrame {
+        let n = unit(self.normal);
+        let a = self.direction.axis();
+        let mut u = [0.0; 3];
+        for step in 1..3 {
+            let mut t = [0.0; 3];
+            t[(a + step) % 3] = 1.0;
+            let cand = sub(t, scale(n, dot(t, n)));
+            // The patch normal is dominated by axis a, so the next axis is
+            // never (nearly) parallel to it; the loop is a guard.
+            if dot(cand, cand) > 1e-12 {
+                u = unit(cand);
+                break;
+            }
+        }
+        PatchFrame {
+            u,
+            v: cross(n, u),
+            n,
+            half: 0.5 * self.area.max(0.0).sqrt(),
+        }
+    }
+
+    /// The point at square coordinates `(a, b) ∈ [−1, 1]²` (in half sides).
+    pub fn point(&self, frame: &PatchFrame, a: f64, b: f64) -> [f64; 3] {
+        std::array::from_fn(|k| self.centre[k] + frame.half * (a * frame.u[k] + b * frame.v[k]))
+    }
+}
