@@ -62,3 +62,4 @@ pub mod bakefile;
 pub mod bench;
 pub mod core;
 pub mod generate;
+pub mod synthetic;

@@ -6,16 +6,15 @@ use anyhow::{bail, Context as _};
 use clap::{Args, Parser, Subcommand};
 use radiosity::bake::form_factor::FormFactorOptions;
 use radiosity::bake::reorder::ReorderMethod;
-use radiosity::bake::transfer::{Bounces, StressCase, TransferOptions};
+use radiosity::bake::transfer::{Bounces, TransferOptions};
 use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
 use radiosity::bakefile::codec::CodecKind;
+use radiosity::bench::transfer::StressCase;
 use radiosity::core::compute::Backend;
 use radiosity::core::compute::Gpu;
 use radiosity::core::compute::{self, DeviceSelection};
-use radiosity::{
-    bake::form_factor, bake::gemm, bake::transfer, bakefile, bench, core::scene, generate,
-};
+use radiosity::{bakefile, bench, core::scene, generate};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -135,7 +134,7 @@ enum BenchCommand {
         /// bc1/bc4 with options (e.g. `bc1:top=0.02,L=auto,sparse=f16`),
         /// `thesis` or `default`. Default: the report's eight settings.
         #[arg(long = "codec", value_delimiter = ';',
-              value_parser = |s: &str| bench::parse_report_codec(s).map_err(|e| e.to_string()))]
+              value_parser = |s: &str| bench::compression::parse_report_codec(s).map_err(|e| e.to_string()))]
         codecs: Vec<radiosity::bakefile::codec::CodecKind>,
         /// Seeded random lights (each one B0 sample).
         #[arg(long, default_value_t = 64)]
@@ -253,7 +252,9 @@ impl BakeArgs {
                     None => CodecKind::default(),
                 };
                 if let Some(f) = top {
-                    kind = kind.with_top_fraction(f)?;
+                    kind = kind
+                        .with_top_fraction(f)
+                        .with_context(|| format!("--top-fraction {f} with --codec {kind}"))?;
                 }
                 CodecChoice::Fixed(kind)
             }
@@ -386,7 +387,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     bail!("--repeat must be at least 1");
                 }
                 let selection = DeviceSelection::from_flag_or_env(device.device)?;
-                let table = bench::voxelize(&scene, &voxel_sizes, repeat, selection)
+                let table = bench::voxelize::run(&scene, &voxel_sizes, repeat, selection)
                     .with_context(|| format!("benchmarking voxelization of {}", scene.display()))?;
                 print!("{table}");
             }
@@ -397,7 +398,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 device,
             } => {
                 let selection = DeviceSelection::from_flag_or_env(device.device)?;
-                let table = form_factor::bench(
+                let table = bench::form_factor::run(
                     &scene,
                     &patches,
                     &FormFactorOptions::default(),
@@ -418,13 +419,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     .context("opening the OpenCL device")?;
                 let backend = Backend::OpenCl(&gpu);
                 println!("## GEMM: OpenCL against faer (f32), same run\n");
-                print!("{}", gemm::bench_gemm(&gemm_sizes, 3, &backend)?);
+                print!("{}", bench::transfer::bench_gemm(&gemm_sizes, 3, &backend)?);
                 let cases: Vec<StressCase> = stress_sizes
                     .iter()
                     .map(|&n| StressCase { n, rooms })
                     .collect();
                 println!("\n## T_inf stress: error against the f64 reference\n");
-                print!("{}", transfer::bench_stress(&cases, &albedos, &backend)?);
+                print!(
+                    "{}",
+                    bench::transfer::bench_stress(&cases, &albedos, &backend)?
+                );
             }
             BenchCommand::Compression {
                 scenes,
@@ -447,10 +451,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 if let Some(&p) = patches.iter().find(|&&p| p == 0) {
                     bail!("--patches must be at least 1, got {p}");
                 }
-                let options = bench::CompressionOptions {
+                let options = bench::compression::CompressionOptions {
                     methods: reorder,
                     kinds: if codecs.is_empty() {
-                        bench::default_compression_kinds()
+                        bench::compression::default_compression_kinds()
                     } else {
                         codecs
                     },
@@ -461,7 +465,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 let mut args: Vec<String> = std::env::args().collect();
                 args[0] = "radiosity".into();
                 let scenes: Vec<(PathBuf, usize)> = scenes.into_iter().zip(patches).collect();
-                let report = bench::compression_report(
+                let report = bench::compression::compression_report(
                     &scenes,
                     &options,
                     &bench::shell_command_line(&args),

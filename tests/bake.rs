@@ -8,12 +8,13 @@
 
 mod common;
 
+use radiosity::bake::encode;
 use radiosity::bake::reorder::ReorderMethod;
 
 use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::{self, BakeConfig, BakeOutput, CodecChoice, ComputeChoice};
 use radiosity::bakefile;
-use radiosity::bakefile::codec::{self, CodecKind, Encoded};
+use radiosity::bakefile::codec::{CodecKind, Encoded};
 use radiosity::core::compute::DeviceSelection;
 use radiosity::core::permutation::Permutation;
 use std::path::PathBuf;
@@ -192,7 +193,7 @@ fn with_the_exact_codec_the_permutation_undoes_exactly() {
     let bp: [Vec<f32>; 3] = std::array::from_fn(|ch| perm.apply_vec(&b0[ch]));
     let h = e.gather_f64([&bp[0], &bp[1], &bp[2]]);
     for ch in 0..3 {
-        let exact = codec::mat_vec(out.transfer.channel(ch), n, &b0[ch]);
+        let exact = encode::mat_vec(out.transfer.channel(ch), n, &b0[ch]);
         let got = perm.unapply_vec(&h[ch]);
         for (a, b) in exact.iter().zip(&got) {
             assert!((a - b).abs() <= n as f64 * f64::EPSILON * a.abs().max(1e-300));
@@ -223,15 +224,15 @@ fn max_error_picks_a_setting_within_the_bound() {
         .collect();
     let reference: Vec<[Vec<f64>; 3]> = samples
         .iter()
-        .map(|b| std::array::from_fn(|ch| codec::mat_vec(&t[ch], n, &b[ch])))
+        .map(|b| std::array::from_fn(|ch| encode::mat_vec(&t[ch], n, &b[ch])))
         .collect();
     // Measured again, independently of the bake: the same error.
-    let again = codec::h_error(&out.encoded, &reference, &samples);
+    let again = encode::h_error(&out.encoded, &reference, &samples);
     assert_eq!(again, err);
-    for kind in codec::default_candidates() {
-        let e = codec::encode(kind, [&t[0], &t[1], &t[2]], n).unwrap();
+    for kind in encode::default_candidates() {
+        let e = encode::encode(kind, [&t[0], &t[1], &t[2]], n).unwrap();
         if e.bytes_total() < out.encoded.bytes_total() {
-            let err = codec::h_error(&e, &reference, &samples);
+            let err = encode::h_error(&e, &reference, &samples);
             assert!(err > 0.05, "{kind} is cheaper and within the bound ({err})");
         }
     }

@@ -5,10 +5,12 @@
 //! the bake file's codec sections (round trip and rejection of corrupt
 //! sections).
 
+use radiosity::bake::encode;
 use radiosity::bake::reorder::{self, ReorderMethod};
-use radiosity::bakefile::codec::{self, synthetic, CodecKind, DenseFormat, Encoded, SparseValues};
+use radiosity::bakefile::codec::{self, CodecKind, DenseFormat, Encoded, SparseValues};
 use radiosity::core::compute::Backend;
 use radiosity::core::patch::Patch;
+use radiosity::synthetic;
 
 fn refs(t: &[Vec<f32>; 3]) -> [&[f32]; 3] {
     [&t[0][..], &t[1][..], &t[2][..]]
@@ -74,7 +76,7 @@ fn sparse_positions(e: &Encoded) -> std::collections::HashSet<(usize, usize)> {
 fn f32_is_exact_and_costs_twelve_bytes() {
     let (_, t) = room(6, 2);
     let n = t[0].len().isqrt();
-    let e = codec::encode(CodecKind::F32, refs(&t), n).unwrap();
+    let e = encode::encode(CodecKind::F32, refs(&t), n).unwrap();
     let d = e.decode();
     assert_eq!(d, t);
     assert_eq!(e.bytes_dense(), 12 * n * n);
@@ -84,7 +86,7 @@ fn f32_is_exact_and_costs_twelve_bytes() {
         e.bytes_dense() + e.bytes_sparse() + e.bytes_index()
     );
     assert!((e.bytes_per_entry() - e.bytes_total() as f64 / (n * n) as f64).abs() < 1e-12);
-    let m = codec::measure(refs(&t), n, &d, &[]);
+    let m = encode::measure(refs(&t), n, &d, &[]);
     assert_eq!(m.total_abs, 0.0);
     assert_eq!(m.rel_frobenius, 0.0);
 }
@@ -93,7 +95,7 @@ fn f32_is_exact_and_costs_twelve_bytes() {
 fn f16_is_within_half_an_ulp() {
     let (_, t) = room(6, 2);
     let n = t[0].len().isqrt();
-    let e = codec::encode(CodecKind::F16, refs(&t), n).unwrap();
+    let e = encode::encode(CodecKind::F16, refs(&t), n).unwrap();
     assert_eq!(e.bytes_dense(), 6 * n * n);
     let d = e.decode();
     for c in 0..3 {
@@ -161,7 +163,7 @@ fn bc1_log_error_bounds() {
         ),
         (CodecKind::THESIS, 0.21, 2.3),
     ] {
-        let e = codec::encode(kind, refs(&t), n).unwrap();
+        let e = encode::encode(kind, refs(&t), n).unwrap();
         assert_eq!(e.format, DenseFormat::Bc1);
         let d = e.decode();
         let (rms, max) = log_errors(&e, &t, &d);
@@ -191,7 +193,7 @@ fn bc4_and_bc6h_error_bounds() {
     let n = t[0].len().isqrt();
     // BC4: 8-bit endpoints and 8 levels per block, decoded at float
     // precision: measured rms 0.056 and max 0.34 in ln-space.
-    let e = codec::encode(bc4(0.04, codec::LOG_RANGE_AUTO), refs(&t), n).unwrap();
+    let e = encode::encode(bc4(0.04, codec::LOG_RANGE_AUTO), refs(&t), n).unwrap();
     assert_eq!(e.format, DenseFormat::Bc4);
     assert_eq!(e.bytes_dense(), 3 * n.div_ceil(4).pow(2) * 8);
     let d = e.decode();
@@ -202,9 +204,9 @@ fn bc4_and_bc6h_error_bounds() {
     // 4 bits per texel between them), no sparse part: measured relative
     // Frobenius error 0.107 on this matrix, dominated by the large
     // near-diagonal entries, which share blocks with much smaller ones.
-    let e = codec::encode(CodecKind::Bc6h, refs(&t), n).unwrap();
+    let e = encode::encode(CodecKind::Bc6h, refs(&t), n).unwrap();
     assert_eq!(e.bytes_dense(), n.div_ceil(4).pow(2) * 16);
-    let m = codec::measure(refs(&t), n, &e.decode(), &[]);
+    let m = encode::measure(refs(&t), n, &e.decode(), &[]);
     eprintln!("bc6h: {m}");
     assert!(m.rel_frobenius < 0.15, "{m}");
 }
@@ -229,12 +231,12 @@ fn gather_equals_decode_then_multiply() {
     cases.push((CodecKind::default(), grey));
     cases.push((CodecKind::F32, grey));
     for (kind, tm) in cases {
-        let e = codec::encode(kind, tm, n).unwrap();
+        let e = encode::encode(kind, tm, n).unwrap();
         let d = e.decode();
         for b0 in &lights {
             let g = e.gather(refs(b0));
             for c in 0..3 {
-                let h = codec::mat_vec(&d[c], n, &b0[c]);
+                let h = encode::mat_vec(&d[c], n, &b0[c]);
                 for i in 0..n {
                     // f32 accumulation of n dense and the sparse terms:
                     // within (n + 2) 2^-24 Σ_j |T̃_ij b_j| of the f64 sum.
@@ -280,7 +282,7 @@ fn zero_tiles_are_skipped_and_counted() {
         bc4(0.0, 12.0),
         CodecKind::Bc6h,
     ] {
-        let e = codec::encode(kind, refs(&t), n).unwrap();
+        let e = encode::encode(kind, refs(&t), n).unwrap();
         // A tile is empty iff its part of the (padded) matrix is all zero.
         let tile = codec::TILE;
         let tps = e.image_size.div_ceil(tile);
@@ -345,7 +347,7 @@ fn exact_zeros_stay_zero() {
         CodecKind::F16,
         CodecKind::F32,
     ] {
-        let e = codec::encode(kind, refs(&t), n).unwrap();
+        let e = encode::encode(kind, refs(&t), n).unwrap();
         let d = e.decode();
         for c in 0..3 {
             for (k, (&x, &y)) in t[c].iter().zip(&d[c]).enumerate() {
@@ -370,8 +372,8 @@ fn exact_zeros_stay_zero() {
     }
     // BC6H keeps zeros only where the encoder does: its count is reported
     // and agrees with the measurement.
-    let e = codec::encode(CodecKind::Bc6h, refs(&t), n).unwrap();
-    let m = codec::measure(refs(&t), n, &e.decode(), &[]);
+    let e = encode::encode(CodecKind::Bc6h, refs(&t), n).unwrap();
+    let m = encode::measure(refs(&t), n, &e.decode(), &[]);
     assert_eq!(m.zeros_changed, e.stats.zeros_lost);
     eprintln!(
         "bc6h: {} of {} zeros decode nonzero",
@@ -385,8 +387,8 @@ fn exact_zeros_stay_zero() {
     for k in (0..n * n).step_by(7) {
         partial[1][k] = 0.0;
     }
-    let e = codec::encode(bc1(0.0, 12.0, SparseValues::F32), refs(&partial), n).unwrap();
-    let m = codec::measure(refs(&partial), n, &e.decode(), &[]);
+    let e = encode::encode(bc1(0.0, 12.0, SparseValues::F32), refs(&partial), n).unwrap();
+    let m = encode::measure(refs(&partial), n, &e.decode(), &[]);
     assert_eq!(m.zeros_changed, e.stats.zeros_lost);
 }
 
@@ -398,27 +400,27 @@ fn grey_input_is_stored_once() {
     let lights = synthetic::point_lights(&patches, 1, 5);
     // BC1 on a grey matrix stores one BC4 channel: the same 0.5 bytes per
     // entry, with 8-bit endpoints. Plain formats store one channel.
-    let e = codec::encode(CodecKind::default(), g, n).unwrap();
+    let e = encode::encode(CodecKind::default(), g, n).unwrap();
     assert!(e.stats.grey);
     assert_eq!((e.format, e.channels), (DenseFormat::Bc4, 1));
     assert_eq!(e.bytes_dense(), n.div_ceil(4).pow(2) * 8);
-    let col = codec::encode(CodecKind::default(), refs(&t), n).unwrap();
+    let col = encode::encode(CodecKind::default(), refs(&t), n).unwrap();
     // One value per sparse position instead of three: a u16 column and one
     // f16 value (the default's precision).
     assert_eq!(e.bytes_sparse(), (n + 1) * 4 + e.sparse.len() * 4);
     assert!(col.bytes_sparse() > e.bytes_sparse());
     let d = e.decode();
     assert!(d[0] == d[1] && d[1] == d[2]);
-    let grey_err = codec::measure(g, n, &d, &lights);
-    let colour_err = codec::measure(refs(&t), n, &col.decode(), &lights);
+    let grey_err = encode::measure(g, n, &d, &lights);
+    let colour_err = encode::measure(refs(&t), n, &col.decode(), &lights);
     eprintln!("grey (bc4): {grey_err}\ncolour (bc1): {colour_err}");
     assert!(grey_err.rel_frobenius < colour_err.rel_frobenius);
-    let f = codec::encode(CodecKind::F32, g, n).unwrap();
+    let f = encode::encode(CodecKind::F32, g, n).unwrap();
     assert_eq!(f.bytes_dense(), 4 * n * n);
     assert_eq!(f.decode()[2], t[1]);
     // Identical content in distinct slices is detected as grey too.
     let copy = t[1].clone();
-    let e2 = codec::encode(CodecKind::F32, [&t[1][..], &copy[..], &t[1][..]], n).unwrap();
+    let e2 = encode::encode(CodecKind::F32, [&t[1][..], &copy[..], &t[1][..]], n).unwrap();
     assert!(e2.stats.grey);
 }
 
@@ -438,7 +440,7 @@ fn sizes_that_are_not_multiples_of_four_or_the_tile() {
                 })
                 .collect()
         });
-        let f = codec::encode(CodecKind::F32, refs(&t), n).unwrap();
+        let f = encode::encode(CodecKind::F32, refs(&t), n).unwrap();
         assert_eq!(f.decode(), t);
         assert_eq!(f.image_size, n);
         let b0: [Vec<f32>; 3] = std::array::from_fn(|c| (0..n).map(|i| (i + c) as f32).collect());
@@ -447,13 +449,13 @@ fn sizes_that_are_not_multiples_of_four_or_the_tile() {
             CodecKind::Bc6h,
             bc4(0.1, 8.0),
         ] {
-            let e = codec::encode(kind, refs(&t), n).unwrap();
+            let e = encode::encode(kind, refs(&t), n).unwrap();
             assert_eq!(e.image_size, n.div_ceil(4) * 4);
             let d = e.decode();
             assert!(d.iter().all(|c| c.len() == n * n));
             let g = e.gather(refs(&b0));
             for c in 0..3 {
-                let h = codec::mat_vec(&d[c], n, &b0[c]);
+                let h = encode::mat_vec(&d[c], n, &b0[c]);
                 for i in 0..n {
                     assert!(
                         (g[c][i] as f64 - h[i]).abs() <= 1e-5 * h[i].abs().max(1e-30),
@@ -474,8 +476,8 @@ fn encoding_is_deterministic() {
         bc4(0.02, 12.0),
         CodecKind::Bc6h,
     ] {
-        let a = codec::encode(kind, refs(&t), n).unwrap();
-        let b = codec::encode(kind, refs(&t), n).unwrap();
+        let a = encode::encode(kind, refs(&t), n).unwrap();
+        let b = encode::encode(kind, refs(&t), n).unwrap();
         assert_eq!(a.dense, b.dense, "{kind}");
         assert_eq!(a.sparse, b.sparse, "{kind}");
         assert_eq!(a.index, b.index, "{kind}");
@@ -488,7 +490,7 @@ fn encoding_is_deterministic() {
 fn top_fraction_takes_the_largest_positions() {
     let (_, t) = room(6, 2);
     let n = t[0].len().isqrt();
-    let e = codec::encode(bc1(0.05, 12.0, SparseValues::F32), refs(&t), n).unwrap();
+    let e = encode::encode(bc1(0.05, 12.0, SparseValues::F32), refs(&t), n).unwrap();
     assert_eq!(e.sparse.len(), (0.05 * (n * n) as f64).round() as usize);
     let max: Vec<f32> = t
         .iter()
@@ -521,22 +523,22 @@ fn choose_picks_the_cheapest_within_the_bound() {
     ];
     let reference: Vec<[Vec<f64>; 3]> = lights
         .iter()
-        .map(|b| std::array::from_fn(|c| codec::mat_vec(&t[c], n, &b[c])))
+        .map(|b| std::array::from_fn(|c| encode::mat_vec(&t[c], n, &b[c])))
         .collect();
     let errs: Vec<(f64, usize)> = candidates
         .iter()
         .map(|&k| {
-            let e = codec::encode(k, refs(&t), n).unwrap();
-            let err = codec::h_error(&e, &reference, &lights);
+            let e = encode::encode(k, refs(&t), n).unwrap();
+            let err = encode::h_error(&e, &reference, &lights);
             // The f64 gather agrees with decode-then-multiply.
-            let m = codec::measure(refs(&t), n, &e.decode(), &lights).rel_rms_h;
+            let m = encode::measure(refs(&t), n, &e.decode(), &lights).rel_rms_h;
             assert!((err - m).abs() <= 1e-9 * m.max(1e-300), "{k}: {err} vs {m}");
             (err, e.bytes_total())
         })
         .collect();
     eprintln!("{errs:?}");
     for bound in [0.0, 1e-3, 0.02, 1.0] {
-        let (kind, e, err) = codec::choose(refs(&t), n, &lights, bound, &candidates).unwrap();
+        let (kind, e, err) = encode::choose(refs(&t), n, &lights, bound, &candidates).unwrap();
         assert!(err <= bound);
         let cheapest = errs
             .iter()
@@ -548,14 +550,14 @@ fn choose_picks_the_cheapest_within_the_bound() {
         assert_eq!(e.bytes_total(), cheapest.0 .1);
     }
     assert_eq!(
-        codec::choose(refs(&t), n, &lights, 0.0, &candidates)
+        encode::choose(refs(&t), n, &lights, 0.0, &candidates)
             .unwrap()
             .0,
         CodecKind::F32
     );
-    let err = codec::choose(refs(&t), n, &lights, 1e-9, &candidates[3..]).unwrap_err();
+    let err = encode::choose(refs(&t), n, &lights, 1e-9, &candidates[3..]).unwrap_err();
     assert!(err.to_string().contains("no codec"), "{err}");
-    assert!(codec::choose(refs(&t), n, &[], 0.1, &candidates).is_err());
+    assert!(encode::choose(refs(&t), n, &[], 0.1, &candidates).is_err());
 }
 
 #[test]
@@ -569,7 +571,7 @@ fn check_accepts_encodings_and_catches_corruption() {
         CodecKind::F16,
         CodecKind::F32,
     ] {
-        let e = codec::encode(kind, refs(&t), n).unwrap();
+        let e = encode::encode(kind, refs(&t), n).unwrap();
         e.check().unwrap();
         let mut bad = e.clone();
         bad.dense.truncate(bad.dense.len() - 1);
@@ -587,16 +589,16 @@ fn check_accepts_encodings_and_catches_corruption() {
         }
     }
     // For F32 the f64 gather is the f64 product, term for term.
-    let e = codec::encode(CodecKind::F32, refs(&t), n).unwrap();
+    let e = encode::encode(CodecKind::F32, refs(&t), n).unwrap();
     let g = e.gather_f64(refs(&b0));
     for c in 0..3 {
-        assert_eq!(g[c], codec::mat_vec(&t[c], n, &b0[c]));
+        assert_eq!(g[c], encode::mat_vec(&t[c], n, &b0[c]));
     }
 }
 
 #[test]
 fn names_parse_back_and_bad_input_is_an_error() {
-    for k in codec::default_candidates() {
+    for k in encode::default_candidates() {
         assert_eq!(CodecKind::parse(&k.name()).unwrap(), k, "{k}");
     }
     assert_eq!(CodecKind::parse("bc1").unwrap(), CodecKind::default());
@@ -609,14 +611,14 @@ fn names_parse_back_and_bad_input_is_an_error() {
     }
     let mut t = [0.5f32; 16];
     t[5] = -1.0;
-    let err = codec::encode(CodecKind::F32, [&t[..], &t[..], &t[..]], 4).unwrap_err();
+    let err = encode::encode(CodecKind::F32, [&t[..], &t[..], &t[..]], 4).unwrap_err();
     assert!(err.to_string().contains("(1, 1)"), "{err}");
     t[5] = f32::NAN;
-    assert!(codec::encode(CodecKind::F16, [&t[..], &t[..], &t[..]], 4).is_err());
-    assert!(codec::encode(CodecKind::F16, [&t[..], &t[..], &t[..]], 5).is_err());
+    assert!(encode::encode(CodecKind::F16, [&t[..], &t[..], &t[..]], 4).is_err());
+    assert!(encode::encode(CodecKind::F16, [&t[..], &t[..], &t[..]], 5).is_err());
     // An all-zero matrix stores nothing dense.
     let z = vec![0.0f32; 64 * 64];
-    let e = codec::encode(CodecKind::default(), [&z[..], &z[..], &z[..]], 64).unwrap();
+    let e = encode::encode(CodecKind::default(), [&z[..], &z[..], &z[..]], 64).unwrap();
     assert_eq!((e.bytes_dense(), e.bytes_sparse()), (0, 0));
     assert_eq!(e.decode()[0], z);
 }
@@ -632,7 +634,7 @@ fn report_lists_every_method_and_codec() {
         ReorderMethod::Greedy { passes: 2 },
     ];
     let kinds = [CodecKind::default(), CodecKind::F32];
-    let rows = codec::report_rows(
+    let rows = radiosity::bench::compression::report_rows(
         refs(&t),
         n,
         &patches,
@@ -647,7 +649,7 @@ fn report_lists_every_method_and_codec() {
         .iter()
         .filter(|r| r.codec == "f32")
         .all(|r| r.error.rel_rms_h == 0.0));
-    let table = codec::report_table(&rows);
+    let table = radiosity::bench::compression::report_table(&rows);
     assert_eq!(table.lines().count(), 2 + 6);
     assert!(table.contains("greedy:2") && table.contains("hilbert"));
     serde_json::to_string(&rows).unwrap();
@@ -705,7 +707,7 @@ fn blobs_round_trip_every_variant() {
     for (matrix, label) in [(&t, "colour"), (&grey, "grey")] {
         for kind in kinds {
             let what = format!("{kind} ({label})");
-            let e = codec::encode(kind, refs(matrix), n).unwrap();
+            let e = encode::encode(kind, refs(matrix), n).unwrap();
             let blob = e.to_blob();
             let back = Encoded::from_blob(&blob).unwrap();
             assert_same_encoding(&e, &back, &what);
@@ -717,7 +719,7 @@ fn blobs_round_trip_every_variant() {
             assert_eq!(blob.dense.len(), e.bytes_dense(), "{what}");
             assert_eq!(
                 blob.sparse.len(),
-                codec::layout::SPARSE_HEADER + e.bytes_sparse(),
+                codec::blob::layout::SPARSE_HEADER + e.bytes_sparse(),
                 "{what}"
             );
             // Through the container.
@@ -747,7 +749,7 @@ fn blobs_round_trip_every_variant() {
 fn corrupt_codec_sections_are_rejected() {
     let (_, t) = room(5, 1);
     let n = t[0].len().isqrt();
-    let e = codec::encode(
+    let e = encode::encode(
         bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::F16),
         refs(&t),
         n,
@@ -797,7 +799,7 @@ fn corrupt_codec_sections_are_rejected() {
     assert!(Encoded::from_blob(&b).is_err(), "wrong n");
     // A tile edge that is consistent with one tile per side but huge (found
     // by the fuzzer: the gather's tile buffer overflowed).
-    let small = codec::encode(CodecKind::F32, refs(&t), n).unwrap();
+    let small = encode::encode(CodecKind::F32, refs(&t), n).unwrap();
     let mut b = small.to_blob();
     b.tile_size = 1 << 30;
     let tps = u32::from_le_bytes(b.tile_index[8..12].try_into().unwrap());
@@ -808,7 +810,7 @@ fn corrupt_codec_sections_are_rejected() {
     b.tile_size = 4096;
     expect_err(&b, "tile edge", "tile edge above the bound");
     // Plain formats: a NaN among the dense values.
-    let f = codec::encode(CodecKind::F32, refs(&t), n).unwrap();
+    let f = encode::encode(CodecKind::F32, refs(&t), n).unwrap();
     let mut b = f.to_blob();
     b.dense[4..8].copy_from_slice(&f32::NAN.to_le_bytes());
     expect_err(&b, "DENS", "NaN in f32 dense data");
@@ -883,13 +885,13 @@ fn rgb9e5_sparse_values_are_cheaper_at_the_same_error() {
     let (patches, t) = room(8, 2);
     let n = patches.len();
     let lights = synthetic::point_lights(&patches, 8, 3);
-    let f32s = codec::encode(
+    let f32s = encode::encode(
         bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::F32),
         refs(&t),
         n,
     )
     .unwrap();
-    let e5 = codec::encode(
+    let e5 = encode::encode(
         bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::Rgb9e5),
         refs(&t),
         n,
@@ -914,12 +916,12 @@ fn rgb9e5_sparse_values_are_cheaper_at_the_same_error() {
             );
         }
     }
-    let err = |e: &Encoded| codec::measure(refs(&t), n, &e.decode(), &lights).rel_rms_h;
+    let err = |e: &Encoded| encode::measure(refs(&t), n, &e.decode(), &lights).rel_rms_h;
     let (ef, ee) = (err(&f32s), err(&e5));
     eprintln!("H error: f32 sparse {ef:.4e}, rgb9e5 sparse {ee:.4e}");
     assert!(ee <= ef * 1.05 + 1e-6, "rgb9e5 {ee} vs f32 {ef}");
     let grey = [&t[1][..], &t[1][..], &t[1][..]];
-    let g = codec::encode(
+    let g = encode::encode(
         bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::Rgb9e5),
         grey,
         n,

@@ -4,11 +4,13 @@
 
 mod common;
 
+use radiosity::bake::encode;
 use radiosity::bake::reorder::{self, Features, ReorderMethod};
 
-use radiosity::bakefile::codec::{self, synthetic, CodecKind, SparseValues};
+use radiosity::bakefile::codec::{self, CodecKind, SparseValues};
 use radiosity::core::compute::Backend;
 use radiosity::core::permutation::Permutation;
+use radiosity::synthetic;
 
 /// A seeded random permutation of `n` (Fisher–Yates).
 fn shuffle(n: usize, seed: u64) -> Permutation {
@@ -66,8 +68,8 @@ fn permutation_round_trip_keeps_the_product() {
     // (P T Pᵀ)(P b) = P (T b): the f32 products are exact in f64, so only
     // the f64 summation order differs (≤ n 2^-53 relative).
     for c in 0..3 {
-        let h = codec::mat_vec(&t[c], n, &b0[c]);
-        let hp = codec::mat_vec(&tp[c], n, &p.apply_vec(&b0[c]));
+        let h = encode::mat_vec(&t[c], n, &b0[c]);
+        let hp = encode::mat_vec(&tp[c], n, &p.apply_vec(&b0[c]));
         let h_back = p.unapply_vec(&hp);
         for (a, b) in h.iter().zip(&h_back) {
             assert!((a - b).abs() <= 1e-12 * a.abs(), "{a} vs {b}");
@@ -75,7 +77,7 @@ fn permutation_round_trip_keeps_the_product() {
     }
     // Through the exact codec and the run-time gather: the same up to the
     // f32 summation order (each entry within (n + 1) 2^-24 of Σ|T||b|).
-    let e = codec::encode(CodecKind::F32, refs(&tp), n).unwrap();
+    let e = encode::encode(CodecKind::F32, refs(&tp), n).unwrap();
     let bp: [Vec<f32>; 3] = std::array::from_fn(|c| p.apply_vec(&b0[c]));
     let g = e.gather(refs(&bp));
     for c in 0..3 {
@@ -87,7 +89,7 @@ fn permutation_round_trip_keeps_the_product() {
                     .sum()
             })
             .collect();
-        let h = codec::mat_vec(&t[c], n, &b0[c]);
+        let h = encode::mat_vec(&t[c], n, &b0[c]);
         for i in 0..n {
             let tol = (n + 1) as f64 * 2f64.powi(-24) * abs[i];
             assert!((g_back[i] as f64 - h[i]).abs() <= tol, "row {i}");
@@ -262,8 +264,8 @@ fn greedy_recovers_a_shuffled_smooth_matrix_and_helps_bc1() {
     };
     let tg = permuted(&p, &ts, n);
     let err = |m: &[Vec<f32>; 3]| {
-        let e = codec::encode(kind, refs(m), n).unwrap();
-        codec::measure(refs(m), n, &e.decode(), &[]).rel_frobenius
+        let e = encode::encode(kind, refs(m), n).unwrap();
+        encode::measure(refs(m), n, &e.decode(), &[]).rel_frobenius
     };
     let (shuffled, reordered) = (err(&ts), err(&tg));
     eprintln!("neighbour fraction {frac}, BC1 rel. Frobenius {shuffled:.3e} shuffled, {reordered:.3e} greedy");
@@ -305,8 +307,8 @@ fn grey_input_uses_one_channel_and_the_same_order() {
     let (t, _) = smooth_line_matrix(n, 2);
     let ts = permuted(&shuffle(n, 3), &t, n);
     let grey = [&ts[0][..], &ts[0][..], &ts[0][..]];
-    assert_eq!(reorder::distinct_channels(grey).len(), 1);
-    let f = Features::new(&reorder::distinct_channels(grey), n);
+    assert_eq!(radiosity::bakefile::codec::distinct_channels(grey).len(), 1);
+    let f = Features::new(&radiosity::bakefile::codec::distinct_channels(grey), n);
     assert_eq!(f.dim(), n);
     let p1 = reorder::reorder(
         ReorderMethod::Greedy { passes: 1 },

@@ -5,9 +5,10 @@
 mod common;
 
 use radiosity::bake::gemm::{self, Gemm, GemmConfig, Layout};
-use radiosity::bake::transfer::{self, synthetic, Bounces, Transfer, TransferOptions};
+use radiosity::bake::transfer::{self, Bounces, Transfer, TransferOptions};
 use radiosity::core::compute::Backend;
 use radiosity::core::error::BakeError;
+use radiosity::synthetic;
 
 /// f32 unit roundoff.
 const U: f64 = 1.0 / (1u64 << 24) as f64;

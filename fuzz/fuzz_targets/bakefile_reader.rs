@@ -25,6 +25,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+use radiosity::bake::encode;
 use radiosity::bakefile::{
     self, crc32, encode, header_checksum, parse, BakeFile, PatchRecord, SceneHash, ENTRY_LEN,
     HEADER_LEN,
@@ -61,7 +62,7 @@ fn base() -> &'static [u8] {
                     (0..9).map(|k| ((k * 5 + c) % 7) as f32 * 0.01).collect()
                 });
                 let kind = CodecKind::parse("bc1:top=0.25,sparse=rgb9e5").unwrap();
-                codec::encode(kind, [&t[0], &t[1], &t[2]], 3)
+                encode::encode(kind, [&t[0], &t[1], &t[2]], 3)
                     .unwrap()
                     .to_blob()
             },

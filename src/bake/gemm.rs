@@ -37,14 +37,11 @@
 //! [`bench_gemm`] measures GFLOP/s against faer's f32 product in the same
 //! run.
 
-use crate::core::compute::Backend;
 use crate::core::compute::{round_up, Access, DeviceInfo, Gpu};
 use crate::core::error::BakeError;
 use opencl3::kernel::{ExecuteKernel, Kernel};
 use opencl3::memory::Buffer;
 use serde::Serialize;
-use std::fmt::Write as _;
-use std::time::Instant;
 
 /// The kernel source, embedded.
 pub const KERNEL_SOURCE: &str = include_str!("../../kernels/gemm.cl");
@@ -573,91 +570,4 @@ pub fn relative_frobenius(x: &[f32], r: &[f64]) -> f64 {
     } else {
         (num / den).sqrt()
     }
-}
-
-/// GEMM throughput on `backend` against faer's f32 product (all threads of
-/// the global rayon pool) on the same random dense matrices, in the same
-/// run, interleaved so that both see the same machine load: best of
-/// `repeat` for each. OpenCL time is the kernel's device time (profiling
-/// events) on the padded matrices, and its GFLOP/s count `2n³` of the
-/// unpadded size, so padding counts against it. The error column is the
-/// relative Frobenius error of the OpenCL product against faer in f64.
-/// Returns a markdown table.
-pub fn bench_gemm(sizes: &[usize], repeat: usize, backend: &Backend) -> Result<String, BakeError> {
-    let repeat = repeat.max(1);
-    let mut out = String::new();
-    let gpu = match backend {
-        Backend::OpenCl(gpu) => Some(*gpu),
-        Backend::Cpu => None,
-    };
-    let _ = writeln!(
-        out,
-        "GEMM C = A·B, f32, square n × n, dense random operands in [0, 1). OpenCL device: {}. faer 0.24 f32 on {} rayon threads. GFLOP/s = 2n³ / best time of {repeat}.\n",
-        gpu.map_or("none (CPU backend)".to_string(), |g| format!(
-            "{} ({}, {} compute units)",
-            g.info().name,
-            g.info().platform,
-            g.info().compute_units
-        )),
-        rayon::current_num_threads()
-    );
-    let _ = writeln!(
-        out,
-        "| n | OpenCL configuration | padded | OpenCL GFLOP/s | faer f32 GFLOP/s | OpenCL / faer | OpenCL rel. error vs f64 |"
-    );
-    let _ = writeln!(out, "|---|---|---|---|---|---|---|");
-    for &n in sizes {
-        let mut rng = crate::bake::transfer::synthetic::Rng::new(0x5eed_0000 + n as u64);
-        let a: Vec<f32> = (0..n * n).map(|_| rng.uniform() as f32).collect();
-        let b: Vec<f32> = (0..n * n).map(|_| rng.uniform() as f32).collect();
-        let flop = 2.0 * (n as f64).powi(3);
-        let (fa, fb) = (to_faer(&a, n, |x| x), to_faer(&b, n, |x| x));
-        let mut fc = faer::Mat::<f32>::zeros(n, n);
-        let mut t_faer = f64::INFINITY;
-        let mut t_cl = f64::INFINITY;
-        let mut device = match gpu {
-            Some(gpu) => {
-                let g = Gemm::new(gpu, n)?;
-                let (da, _) = g.upload("A", n, &a)?;
-                let (db, _) = g.upload("B", n, &b)?;
-                let dc = g.alloc("C", n)?;
-                Some((g, da, db, dc))
-            }
-            None => None,
-        };
-        for _ in 0..repeat {
-            let t = Instant::now();
-            faer::linalg::matmul::matmul(
-                fc.as_mut(),
-                faer::Accum::Replace,
-                fa.as_ref(),
-                fb.as_ref(),
-                1.0f32,
-                faer::Par::rayon(0),
-            );
-            t_faer = t_faer.min(t.elapsed().as_secs_f64());
-            if let Some((g, da, db, dc)) = device.as_mut() {
-                t_cl = t_cl.min(g.multiply(da, db, None, dc, true)?.seconds);
-            }
-        }
-        match device {
-            Some((g, _, _, dc)) => {
-                let c = g.download("C", &dc)?;
-                let err = relative_frobenius(&c, &reference_product(&a, &b, None, n));
-                let _ = writeln!(
-                    out,
-                    "| {n} | {} | {} | {:.1} | {:.1} | {:.2} | {err:.1e} |",
-                    g.config(),
-                    g.padded(n),
-                    flop / t_cl * 1e-9,
-                    flop / t_faer * 1e-9,
-                    t_faer / t_cl
-                );
-            }
-            None => {
-                let _ = writeln!(out, "| {n} | | | | {:.1} | | |", flop / t_faer * 1e-9);
-            }
-        }
-    }
-    Ok(out)
 }

@@ -10,6 +10,7 @@
 //! timings): the same scene and options give the same bytes. Timings go to
 //! the terminal report only.
 
+pub mod encode;
 pub mod form_factor;
 pub mod gemm;
 pub mod mesh_map;
@@ -18,7 +19,7 @@ pub mod reorder;
 pub mod transfer;
 pub mod voxelize;
 
-use crate::bakefile::codec::{self, CodecKind, Encoded};
+use crate::bakefile::codec::{CodecKind, Encoded};
 use crate::bakefile::{self, BakeFile, PatchRecord, SceneHash};
 use crate::core::compute::Backend;
 use crate::core::compute::{DeviceSelection, Gpu};
@@ -397,20 +398,20 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     let (encoded, h_error, chosen_by) = match config.codec {
         CodecChoice::Fixed(kind) => {
             progress(&format!("encoding with {kind}"));
-            let e = codec::encode(kind, tp, n)?;
+            let e = encode::encode(kind, tp, n)?;
             let err = (!b0_samples.is_empty()).then(|| {
                 let reference = exact_h(tp, n, &b0_samples);
-                codec::h_error(&e, &reference, &b0_samples)
+                encode::h_error(&e, &reference, &b0_samples)
             });
             (e, err, "fixed".to_string())
         }
         CodecChoice::MaxError(max) => {
             progress(&format!(
                 "choosing the cheapest codec with H error ≤ {max} ({} candidates)",
-                codec::default_candidates().len()
+                encode::default_candidates().len()
             ));
             let (_, e, err) =
-                codec::choose_with(tp, n, &b0_samples, max, &[], &mut |kind, err, bpe| {
+                encode::choose_with(tp, n, &b0_samples, max, &[], &mut |kind, err, bpe| {
                     progress(&format!(
                         "  {kind}: H error {:.3} %, {bpe:.4} bytes/entry",
                         100.0 * err
@@ -662,7 +663,7 @@ pub fn error_samples(scene: &scene::Scene, patches: &[Patch], count: usize) -> V
 fn exact_h(t: [&[f32]; 3], n: usize, samples: &[[Vec<f32>; 3]]) -> Vec<[Vec<f64>; 3]> {
     samples
         .iter()
-        .map(|b| std::array::from_fn(|c| codec::mat_vec(t[c], n, &b[c])))
+        .map(|b| std::array::from_fn(|c| encode::mat_vec(t[c], n, &b[c])))
         .collect()
 }
 

@@ -152,17 +152,6 @@ pub struct ReorderStats {
     pub chain_lengths: Vec<f64>,
 }
 
-/// The channels of `t` that carry distinct data: one when all three are
-/// equal (a grey scene), else three.
-pub fn distinct_channels(t: [&[f32]; 3]) -> Vec<&[f32]> {
-    let same = |a: &[f32], b: &[f32]| std::ptr::eq(a, b) || a == b;
-    if same(t[0], t[1]) && same(t[1], t[2]) {
-        vec![t[0]]
-    } else {
-        t.to_vec()
-    }
-}
-
 fn check_input(t: [&[f32]; 3], n: usize) -> Result<(), BakeError> {
     for (c, ch) in t.iter().enumerate() {
         if ch.len() != n * n {
@@ -199,7 +188,7 @@ pub fn reorder_with_stats(
 ) -> Result<(Permutation, ReorderStats), BakeError> {
     check_input(t, n)?;
     let start = Instant::now();
-    let channels = distinct_channels(t);
+    let channels = crate::bakefile::codec::distinct_channels(t);
     let features = Features::new(&channels, n);
     let mut kernel_seconds = 0.0;
     let mut chain_lengths = Vec::new();

@@ -75,6 +75,14 @@ pub enum BakeError {
     #[error(transparent)]
     Grid(#[from] GridError),
     #[error(transparent)]
+    Encode(#[from] crate::bake::encode::EncodeError),
+    #[error(transparent)]
+    Choose(#[from] crate::bake::encode::measure::ChooseError),
+    #[error(transparent)]
+    CodecSetting(#[from] crate::bakefile::codec::CodecSettingError),
+    #[error(transparent)]
+    CodecData(#[from] crate::bakefile::codec::CodecDataError),
+    #[error(transparent)]
     Permutation(#[from] crate::core::permutation::PermutationError),
 }
 

@@ -1,0 +1,273 @@
+//! Error measures of a compressed matrix (DESIGN.md section 3, measure 3)
+//! and the choice of the cheapest codec setting under an error bound.
+
+use super::{encode, EncodeError};
+use crate::bakefile::codec::{CodecKind, Encoded, SparseValues, LOG_RANGE_AUTO};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Why no codec setting could be chosen.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ChooseError {
+    #[error("the error bound must be a non-negative number, got {0}")]
+    MaxError(f64),
+    #[error("choosing a codec by error needs at least one B0 sample")]
+    NoSamples,
+    #[error("every B0 sample needs {0} values per channel")]
+    SampleSize(usize),
+    #[error("no codec reaches a relative H error of {max_error}; tried {tried}")]
+    NoCandidate { max_error: f64, tried: String },
+    #[error(transparent)]
+    Encode(#[from] EncodeError),
+}
+
+/// Errors of a decoded matrix against the original (DESIGN.md section 3,
+/// measure 3). Entry errors are over all `3 n²` entries (three channels).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct CodecError {
+    /// The thesis's table: mean, max and total absolute error per entry.
+    pub mean_abs: f64,
+    pub max_abs: f64,
+    pub total_abs: f64,
+    /// `‖T̃ − T‖_F / ‖T‖_F`, the three channels pooled.
+    pub rel_frobenius: f64,
+    /// `‖H̃ − H‖ / ‖H‖` with `H = T B0`, pooled over all samples, channels
+    /// and patches (0 without samples).
+    pub rel_rms_h: f64,
+    /// The worst single sample's `‖H̃ − H‖ / ‖H‖` (three channels).
+    pub max_rel_h: f64,
+    /// Entries exactly 0 in `T` but not in `T̃`.
+    pub zeros_changed: u64,
+    pub samples: usize,
+}
+
+impl std::fmt::Display for CodecError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "entry error mean {:.3e} max {:.3e} total {:.3e}; rel. Frobenius {:.3e}; \
+             H rel. RMS {:.3e} (worst sample {:.3e}, {} samples); zeros changed {}",
+            self.mean_abs,
+            self.max_abs,
+            self.total_abs,
+            self.rel_frobenius,
+            self.rel_rms_h,
+            self.max_rel_h,
+            self.samples,
+            self.zeros_changed
+        )
+    }
+}
+
+/// Measures `decoded` against `t` (module doc, [`CodecError`]); products in
+/// f64.
+pub fn measure(
+    t: [&[f32]; 3],
+    n: usize,
+    decoded: &[Vec<f32>; 3],
+    b0_samples: &[[Vec<f32>; 3]],
+) -> CodecError {
+    #[derive(Default, Clone, Copy)]
+    struct Acc {
+        sum: f64,
+        max: f64,
+        diff2: f64,
+        ref2: f64,
+        zeros: u64,
+    }
+    let acc = (0..3)
+        .flat_map(|c| (0..n).map(move |i| (c, i)))
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|(c, i)| {
+            let mut a = Acc::default();
+            let (r, d) = (&t[c][i * n..(i + 1) * n], &decoded[c][i * n..(i + 1) * n]);
+            for (&x, &y) in r.iter().zip(d) {
+                let e = (y as f64 - x as f64).abs();
+                a.sum += e;
+                a.max = a.max.max(e);
+                a.diff2 += e * e;
+                a.ref2 += (x as f64) * (x as f64);
+                a.zeros += u64::from(x == 0.0 && y != 0.0);
+            }
+            a
+        })
+        .reduce(Acc::default, |a, b| Acc {
+            sum: a.sum + b.sum,
+            max: a.max.max(b.max),
+            diff2: a.diff2 + b.diff2,
+            ref2: a.ref2 + b.ref2,
+            zeros: a.zeros + b.zeros,
+        });
+    let entries = (3 * n * n).max(1) as f64;
+    let (mut d2, mut r2, mut worst) = (0.0f64, 0.0f64, 0.0f64);
+    for b0 in b0_samples {
+        let (mut sd, mut sr) = (0.0f64, 0.0f64);
+        for c in 0..3 {
+            let (x, y) = (mat_vec(t[c], n, &b0[c]), mat_vec(&decoded[c], n, &b0[c]));
+            for (a, b) in x.iter().zip(&y) {
+                sd += (b - a) * (b - a);
+                sr += a * a;
+            }
+        }
+        d2 += sd;
+        r2 += sr;
+        worst = worst.max(ratio(sd.sqrt(), sr.sqrt()));
+    }
+    CodecError {
+        mean_abs: acc.sum / entries,
+        max_abs: acc.max,
+        total_abs: acc.sum,
+        rel_frobenius: ratio(acc.diff2.sqrt(), acc.ref2.sqrt()),
+        rel_rms_h: ratio(d2.sqrt(), r2.sqrt()),
+        max_rel_h: worst,
+        zeros_changed: acc.zeros,
+        samples: b0_samples.len(),
+    }
+}
+
+/// `a / b`, 0 when both are 0, infinite when only `b` is.
+fn ratio(a: f64, b: f64) -> f64 {
+    if b > 0.0 {
+        a / b
+    } else if a > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    }
+}
+
+/// `M v` in f64 for a row-major n × n f32 matrix.
+pub fn mat_vec(m: &[f32], n: usize, v: &[f32]) -> Vec<f64> {
+    assert_eq!(v.len(), n);
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            m[i * n..(i + 1) * n]
+                .iter()
+                .zip(v)
+                .map(|(&a, &b)| a as f64 * b as f64)
+                .sum()
+        })
+        .collect()
+}
+
+/// The candidates [`choose`] tries by default: BC1-log with the automatic
+/// log range and RGB9E5 sparse values at top fractions {0, 0.01, 0.02,
+/// 0.03, 0.04, 0.06, 0.08}, the same at the top 4 % with f16 and f32 sparse
+/// values, the thesis's setting, BC4-log at {0, 0.02}, BC6H, F16 and F32
+/// (exact, so some candidate always passes).
+pub fn default_candidates() -> Vec<CodecKind> {
+    let bc1 = |top_fraction, sparse| CodecKind::Bc1Log {
+        top_fraction,
+        log_range: LOG_RANGE_AUTO,
+        sparse,
+    };
+    let mut v: Vec<CodecKind> = [0.0, 0.01, 0.02, 0.03, 0.04, 0.06, 0.08]
+        .iter()
+        .map(|&f| bc1(f, SparseValues::Rgb9e5))
+        .collect();
+    v.push(bc1(0.04, SparseValues::F16));
+    v.push(bc1(0.04, SparseValues::F32));
+    v.push(CodecKind::THESIS);
+    for &top_fraction in &[0.0, 0.02] {
+        v.push(CodecKind::Bc4Log {
+            top_fraction,
+            log_range: LOG_RANGE_AUTO,
+            sparse: SparseValues::Rgb9e5,
+        });
+    }
+    v.extend([CodecKind::Bc6h, CodecKind::F16, CodecKind::F32]);
+    v
+}
+
+/// The cheapest setting (total bytes) among `candidates` (empty: the
+/// [`default_candidates`]) whose relative RMS error of `H = T̃ · B0` over
+/// `b0_samples` is at most `max_error`: every candidate is encoded and
+/// measured, ties go to the earlier candidate. Returns the setting, its
+/// encoding and its measured error.
+pub fn choose(
+    t: [&[f32]; 3],
+    n: usize,
+    b0_samples: &[[Vec<f32>; 3]],
+    max_error: f64,
+    candidates: &[CodecKind],
+) -> Result<(CodecKind, Encoded, f64), ChooseError> {
+    choose_with(t, n, b0_samples, max_error, candidates, &mut |_, _, _| {})
+}
+
+/// [`choose`], calling `on_candidate(setting, H error, bytes per entry)`
+/// as each candidate is measured (for progress output and reports).
+pub fn choose_with(
+    t: [&[f32]; 3],
+    n: usize,
+    b0_samples: &[[Vec<f32>; 3]],
+    max_error: f64,
+    candidates: &[CodecKind],
+    on_candidate: &mut dyn FnMut(CodecKind, f64, f64),
+) -> Result<(CodecKind, Encoded, f64), ChooseError> {
+    if !(max_error >= 0.0) {
+        return Err(ChooseError::MaxError(max_error));
+    }
+    if b0_samples.is_empty() {
+        return Err(ChooseError::NoSamples);
+    }
+    for b0 in b0_samples {
+        if b0.iter().any(|c| c.len() != n) {
+            return Err(ChooseError::SampleSize(n));
+        }
+    }
+    let defaults;
+    let candidates = if candidates.is_empty() {
+        defaults = default_candidates();
+        &defaults[..]
+    } else {
+        candidates
+    };
+    // The exact H of every sample, once; each candidate is measured through
+    // its f64 gather, without a decoded n × n copy.
+    let reference: Vec<[Vec<f64>; 3]> = b0_samples
+        .iter()
+        .map(|b| std::array::from_fn(|c| mat_vec(t[c], n, &b[c])))
+        .collect();
+    let mut best: Option<(CodecKind, Encoded, f64)> = None;
+    let mut tried = Vec::new();
+    for &kind in candidates {
+        let e = encode(kind, t, n)?;
+        let err = h_error(&e, &reference, b0_samples);
+        on_candidate(kind, err, e.bytes_per_entry());
+        tried.push(format!(
+            "{kind}: {err:.3e} at {:.3} B/entry",
+            e.bytes_per_entry()
+        ));
+        if err <= max_error
+            && best
+                .as_ref()
+                .is_none_or(|b| e.bytes_total() < b.1.bytes_total())
+        {
+            best = Some((kind, e, err));
+        }
+    }
+    best.ok_or_else(|| ChooseError::NoCandidate {
+        max_error,
+        tried: tried.join("; "),
+    })
+}
+
+/// The relative RMS error of `H̃ = T̃ B0` (computed from the encoding in
+/// f64, [`Encoded::gather_f64`]) against the exact products `reference`
+/// (`T B0` per sample and channel, e.g. from [`mat_vec`]), pooled over all
+/// samples, channels and patches as in [`CodecError::rel_rms_h`].
+pub fn h_error(e: &Encoded, reference: &[[Vec<f64>; 3]], b0_samples: &[[Vec<f32>; 3]]) -> f64 {
+    let (mut d2, mut r2) = (0.0f64, 0.0f64);
+    for (h, b0) in reference.iter().zip(b0_samples) {
+        let g = e.gather_f64([&b0[0], &b0[1], &b0[2]]);
+        for c in 0..3 {
+            for (a, b) in h[c].iter().zip(&g[c]) {
+                d2 += (b - a) * (b - a);
+                r2 += a * a;
+            }
+        }
+    }
+    ratio(d2.sqrt(), r2.sqrt())
+}

@@ -1,0 +1,103 @@
+//! `radiosity bench form-factors`: form factors on OpenCL and on the CPU
+//! reference at several patch counts, in the same run.
+
+use crate::bake::form_factor::{compare, form_factors, FormFactorOptions};
+use crate::core::compute::{Backend, Gpu};
+use std::path::Path;
+
+/// The form-factor benchmark behind `radiosity bench form-factors`: for
+/// each target patch count, voxelize `scene_path` (OpenCL), compute `F` on
+/// OpenCL and, when `cpu_reference`, on the CPU reference in the same run,
+/// and tabulate pairs/s, rays/s and the difference. Returns the table.
+pub fn run(
+    scene_path: &Path,
+    targets: &[usize],
+    options: &FormFactorOptions,
+    selection: crate::core::compute::DeviceSelection,
+    cpu_reference: bool,
+) -> anyhow::Result<String> {
+    use anyhow::Context as _;
+    use std::fmt::Write as _;
+    let scene = crate::core::scene::load(scene_path)?;
+    let gpu = Gpu::new(selection).context("opening the OpenCL device")?;
+    let mut out = String::new();
+    writeln!(
+        out,
+        "form factors of {} ({} triangles) on {} ({}); samples {}, rays {}, quadrature_tol {}; CPU reference: f64, rayon on {} threads",
+        scene_path.display(),
+        scene.triangles.len(),
+        gpu.info().name,
+        gpu.info().platform,
+        options.samples,
+        options.rays,
+        options.quadrature_tol,
+        rayon::current_num_threads()
+    )?;
+    writeln!(
+        out,
+        "| voxel size | patches | removed | pairs | evaluated | back-facing | cert. blocked | rays | OpenCL (s) | pairs/s | rays/s | CPU ref (s) | CPU pairs/s | CPU rays/s | max row sum before corr. | rows corrected | max abs ΔF | rel. Frobenius ΔF | max Δ row sum |"
+    )?;
+    writeln!(
+        out,
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    )?;
+    for &target in targets {
+        let vox = crate::bake::voxelize::voxelize(
+            &scene,
+            crate::bake::voxelize::Resolution::Patches(target),
+            &Backend::OpenCl(&gpu),
+        )?;
+        let cl = form_factors(
+            &scene,
+            &vox.patches,
+            &vox.grid,
+            options,
+            &Backend::OpenCl(&gpu),
+            &mut |_, _| {},
+        )?;
+        let s = &cl.stats;
+        let (cpu_cells, diff_cells) = if cpu_reference {
+            let cpu = form_factors(
+                &scene,
+                &vox.patches,
+                &vox.grid,
+                options,
+                &Backend::Cpu,
+                &mut |_, _| {},
+            )?;
+            let c = compare(&cl, &cpu)?;
+            (
+                format!(
+                    "{:.2} | {:.3e} | {:.3e}",
+                    cpu.stats.seconds_pairs, cpu.stats.pairs_per_second, cpu.stats.rays_per_second
+                ),
+                format!(
+                    "{:.2e} | {:.2e} | {:.2e}",
+                    c.max_abs_diff, c.rel_frobenius, c.max_row_sum_diff
+                ),
+            )
+        } else {
+            ("- | - | -".to_string(), "- | - | -".to_string())
+        };
+        writeln!(
+            out,
+            "| {:.4} | {} | {} | {} | {} | {} | {} | {} | {:.2} | {:.3e} | {:.3e} | {} | {:.6} | {} | {} |",
+            vox.grid.size,
+            s.patches,
+            s.removed_patches,
+            s.pairs_total,
+            s.pairs_evaluated,
+            s.skipped_backfacing,
+            s.skipped_blocked,
+            s.rays_cast,
+            s.seconds_pairs,
+            s.pairs_per_second,
+            s.rays_per_second,
+            cpu_cells,
+            s.max_row_sum_before,
+            s.row_corrections,
+            diff_cells
+        )?;
+    }
+    Ok(out)
+}
