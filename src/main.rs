@@ -9,13 +9,15 @@ use radiosity::bake::reorder::ReorderMethod;
 use radiosity::bake::transfer::{Bounces, TransferOptions};
 use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
+use radiosity::bakefile::baked::describe;
 use radiosity::bakefile::codec::CodecKind;
+use radiosity::bakefile::container::write_atomic;
 use radiosity::bench::transfer::StressCase;
 use radiosity::core::compute::Backend;
 use radiosity::core::compute::Gpu;
 use radiosity::core::compute::{self, DeviceSelection};
 use radiosity::{bakefile, bench, core::scene, generate};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -310,126 +312,30 @@ fn main() -> ExitCode {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Devices { json } => {
-            let devices = compute::devices().context("listing OpenCL devices")?;
-            if json {
-                println!("{}", serde_json::to_string_pretty(&devices)?);
-            } else {
-                for d in &devices {
-                    println!(
-                        "[{}] {} — {} ({}), {}, {} compute units, {} MiB global, {} MiB max alloc, {} KiB local, fp64 {}",
-                        d.index,
-                        d.platform,
-                        d.name,
-                        d.kind,
-                        d.version.trim(),
-                        d.compute_units,
-                        d.global_mem_bytes >> 20,
-                        d.max_mem_alloc_bytes >> 20,
-                        d.local_mem_bytes >> 10,
-                        if d.fp64 { "yes" } else { "no" }
-                    );
-                }
-                println!("GL renderer: not part of this build yet (the renderer comes with a later stage)");
-            }
-        }
-        Command::Info { path, json } if bakefile::is_bake_file(&path) => {
-            let summary = bake::describe(&path)?;
-            if json {
-                println!("{}", serde_json::to_string_pretty(&summary)?);
-            } else {
-                print!("{summary}");
-            }
-        }
-        Command::Info { path, json } => {
-            let s = scene::load(&path).with_context(|| format!("loading {}", path.display()))?;
-            let summary = s.summary();
-            if json {
-                println!("{}", serde_json::to_string_pretty(&summary)?);
-            } else {
-                print!("{summary}");
-            }
-        }
-        Command::Bake(args) => {
-            let (config, json) = args.into_config()?;
-            let out = bake::run(&config, &mut |line| eprintln!("[bake] {line}"))
-                .with_context(|| format!("baking {}", config.scene.display()))?;
-            if json {
-                println!("{}", serde_json::to_string_pretty(&out.report)?);
-            } else {
-                print!("{}", out.report.scene);
-                print!("{}", out.report);
-            }
-        }
-        Command::Generate { name, output, list } => {
-            if list {
-                for n in generate::BUNDLED {
-                    println!("{n}");
-                }
-                return Ok(());
-            }
-            let name = name.expect("clap requires NAME without --list");
-            let dir = output.unwrap_or_else(|| PathBuf::from("scenes").join(&name));
-            let written = generate::write_bundled(&name, &dir)
-                .with_context(|| format!("generating scene {name} into {}", dir.display()))?;
-            for p in written {
-                println!("wrote {}", p.display());
-            }
-        }
+        Command::Devices { json } => devices(json),
+        Command::Info { path, json } => info(&path, json),
+        Command::Bake(args) => bake(args),
+        Command::Generate { name, output, list } => generate(name, output, list),
         Command::Bench { which } => match which {
             BenchCommand::Voxelize {
                 scene,
                 voxel_sizes,
                 repeat,
                 device,
-            } => {
-                if repeat == 0 {
-                    bail!("--repeat must be at least 1");
-                }
-                let selection = DeviceSelection::from_flag_or_env(device.device)?;
-                let table = bench::voxelize::run(&scene, &voxel_sizes, repeat, selection)
-                    .with_context(|| format!("benchmarking voxelization of {}", scene.display()))?;
-                print!("{table}");
-            }
+            } => bench_voxelize(&scene, &voxel_sizes, repeat, device),
             BenchCommand::FormFactors {
                 scene,
                 patches,
                 no_cpu_reference,
                 device,
-            } => {
-                let selection = DeviceSelection::from_flag_or_env(device.device)?;
-                let table = bench::form_factor::run(
-                    &scene,
-                    &patches,
-                    &FormFactorOptions::default(),
-                    selection,
-                    !no_cpu_reference,
-                )
-                .with_context(|| format!("benchmarking form factors of {}", scene.display()))?;
-                print!("{table}");
-            }
+            } => bench_form_factors(&scene, &patches, no_cpu_reference, device),
             BenchCommand::Transfer {
                 gemm_sizes,
                 stress_sizes,
                 rooms,
                 albedos,
                 device,
-            } => {
-                let gpu = Gpu::new(DeviceSelection::from_flag_or_env(device.device)?)
-                    .context("opening the OpenCL device")?;
-                let backend = Backend::OpenCl(&gpu);
-                println!("## GEMM: OpenCL against faer (f32), same run\n");
-                print!("{}", bench::transfer::bench_gemm(&gemm_sizes, 3, &backend)?);
-                let cases: Vec<StressCase> = stress_sizes
-                    .iter()
-                    .map(|&n| StressCase { n, rooms })
-                    .collect();
-                println!("\n## T_inf stress: error against the f64 reference\n");
-                print!(
-                    "{}",
-                    bench::transfer::bench_stress(&cases, &albedos, &backend)?
-                );
-            }
+            } => bench_transfer(&gemm_sizes, &stress_sizes, rooms, &albedos, device),
             BenchCommand::Compression {
                 scenes,
                 patches,
@@ -439,55 +345,209 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 seed,
                 output,
                 device,
-            } => {
-                let patches = match patches.len() {
-                    1 => vec![patches[0]; scenes.len()],
-                    k if k == scenes.len() => patches,
-                    k => bail!(
-                        "--patches takes one count or one per scene: got {k} for {} scenes",
-                        scenes.len()
-                    ),
-                };
-                if let Some(&p) = patches.iter().find(|&&p| p == 0) {
-                    bail!("--patches must be at least 1, got {p}");
-                }
-                let options = bench::compression::CompressionOptions {
-                    methods: reorder,
-                    kinds: if codecs.is_empty() {
-                        bench::compression::default_compression_kinds()
-                    } else {
-                        codecs
-                    },
-                    lights,
-                    seed,
-                    selection: DeviceSelection::from_flag_or_env(device.device)?,
-                };
-                let mut args: Vec<String> = std::env::args().collect();
-                args[0] = "radiosity".into();
-                let scenes: Vec<(PathBuf, usize)> = scenes.into_iter().zip(patches).collect();
-                let report = bench::compression::compression_report(
-                    &scenes,
-                    &options,
-                    &bench::shell_command_line(&args),
-                    &mut |line| eprintln!("[compression] {line}"),
-                )
-                .context("compression report")?;
-                match output {
-                    Some(path) => {
-                        let mut tmp = path.clone().into_os_string();
-                        tmp.push(".tmp");
-                        let tmp = PathBuf::from(tmp);
-                        std::fs::write(&tmp, &report)
-                            .with_context(|| format!("writing {}", tmp.display()))?;
-                        std::fs::rename(&tmp, &path).with_context(|| {
-                            format!("renaming {} to {}", tmp.display(), path.display())
-                        })?;
-                        eprintln!("wrote {}", path.display());
-                    }
-                    None => print!("{report}"),
-                }
-            }
+            } => bench_compression(
+                scenes, patches, reorder, codecs, lights, seed, output, device,
+            ),
         },
+    }
+}
+
+/// `radiosity devices`.
+fn devices(json: bool) -> anyhow::Result<()> {
+    let devices = compute::devices().context("listing OpenCL devices")?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&devices)?);
+        return Ok(());
+    }
+    for d in &devices {
+        println!(
+            "[{}] {} — {} ({}), {}, {} compute units, {} MiB global, {} MiB max alloc, {} KiB \
+             local, fp64 {}",
+            d.index,
+            d.platform,
+            d.name,
+            d.kind,
+            d.version.trim(),
+            d.compute_units,
+            d.global_mem_bytes >> 20,
+            d.max_mem_alloc_bytes >> 20,
+            d.local_mem_bytes >> 10,
+            if d.fp64 { "yes" } else { "no" }
+        );
+    }
+    Ok(())
+}
+
+/// `radiosity info`: a bake file (by its magic, or a `.rad` name, so that a
+/// damaged bake file is reported as one) or a scene.
+fn info(path: &Path, json: bool) -> anyhow::Result<()> {
+    let is_rad = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("rad"));
+    if is_rad || bakefile::is_bake_file(path) {
+        let summary = describe(path)?;
+        if json {
+            println!("{}", serde_json::to_string_pretty(&summary)?);
+        } else {
+            print!("{summary}");
+        }
+        return Ok(());
+    }
+    let s = scene::load(path).with_context(|| format!("loading {}", path.display()))?;
+    let summary = s.summary();
+    if json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        print!("{summary}");
+    }
+    Ok(())
+}
+
+/// `radiosity bake`.
+fn bake(args: BakeArgs) -> anyhow::Result<()> {
+    let (config, json) = args.into_config()?;
+    let out = bake::run(&config, &mut |line| eprintln!("[bake] {line}"))
+        .with_context(|| format!("baking {}", config.scene.display()))?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&out.report)?);
+    } else {
+        print!("{}", out.report.scene);
+        print!("{}", out.report);
+    }
+    Ok(())
+}
+
+/// `radiosity generate`.
+fn generate(name: Option<String>, output: Option<PathBuf>, list: bool) -> anyhow::Result<()> {
+    if list {
+        for n in generate::BUNDLED {
+            println!("{n}");
+        }
+        return Ok(());
+    }
+    let name = name.context("a scene name is required (see --list)")?;
+    let dir = output.unwrap_or_else(|| PathBuf::from("scenes").join(&name));
+    let written = generate::write_bundled(&name, &dir)
+        .with_context(|| format!("generating scene {name} into {}", dir.display()))?;
+    for p in written {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+/// `radiosity bench voxelize`.
+fn bench_voxelize(
+    scene: &Path,
+    voxel_sizes: &[f64],
+    repeat: usize,
+    device: DeviceArgs,
+) -> anyhow::Result<()> {
+    if repeat == 0 {
+        bail!("--repeat must be at least 1");
+    }
+    let selection = DeviceSelection::from_flag_or_env(device.device)?;
+    let table = bench::voxelize::run(scene, voxel_sizes, repeat, selection)
+        .with_context(|| format!("benchmarking voxelization of {}", scene.display()))?;
+    print!("{table}");
+    Ok(())
+}
+
+/// `radiosity bench form-factors`.
+fn bench_form_factors(
+    scene: &Path,
+    patches: &[usize],
+    no_cpu_reference: bool,
+    device: DeviceArgs,
+) -> anyhow::Result<()> {
+    let selection = DeviceSelection::from_flag_or_env(device.device)?;
+    let table = bench::form_factor::run(
+        scene,
+        patches,
+        &FormFactorOptions::default(),
+        selection,
+        !no_cpu_reference,
+    )
+    .with_context(|| format!("benchmarking form factors of {}", scene.display()))?;
+    print!("{table}");
+    Ok(())
+}
+
+/// `radiosity bench transfer`.
+fn bench_transfer(
+    gemm_sizes: &[usize],
+    stress_sizes: &[usize],
+    rooms: usize,
+    albedos: &[f64],
+    device: DeviceArgs,
+) -> anyhow::Result<()> {
+    let gpu = Gpu::new(DeviceSelection::from_flag_or_env(device.device)?)
+        .context("opening the OpenCL device")?;
+    let backend = Backend::OpenCl(&gpu);
+    println!("## GEMM: OpenCL against faer (f32), same run\n");
+    print!("{}", bench::transfer::bench_gemm(gemm_sizes, 3, &backend)?);
+    let cases: Vec<StressCase> = stress_sizes
+        .iter()
+        .map(|&n| StressCase { n, rooms })
+        .collect();
+    println!("\n## T_inf stress: error against the f64 reference\n");
+    print!(
+        "{}",
+        bench::transfer::bench_stress(&cases, albedos, &backend)?
+    );
+    Ok(())
+}
+
+/// `radiosity bench compression`.
+#[allow(clippy::too_many_arguments)]
+fn bench_compression(
+    scenes: Vec<PathBuf>,
+    patches: Vec<usize>,
+    reorder: Vec<ReorderMethod>,
+    codecs: Vec<CodecKind>,
+    lights: usize,
+    seed: u64,
+    output: Option<PathBuf>,
+    device: DeviceArgs,
+) -> anyhow::Result<()> {
+    let patches = match patches.len() {
+        1 => vec![patches[0]; scenes.len()],
+        k if k == scenes.len() => patches,
+        k => bail!(
+            "--patches takes one count or one per scene: got {k} for {} scenes",
+            scenes.len()
+        ),
+    };
+    if let Some(&p) = patches.iter().find(|&&p| p == 0) {
+        bail!("--patches must be at least 1, got {p}");
+    }
+    let options = bench::compression::CompressionOptions {
+        methods: reorder,
+        kinds: if codecs.is_empty() {
+            bench::compression::default_compression_kinds()
+        } else {
+            codecs
+        },
+        lights,
+        seed,
+        selection: DeviceSelection::from_flag_or_env(device.device)?,
+    };
+    let mut args: Vec<String> = std::env::args().collect();
+    args[0] = "radiosity".into();
+    let scenes: Vec<(PathBuf, usize)> = scenes.into_iter().zip(patches).collect();
+    let report = bench::compression::compression_report(
+        &scenes,
+        &options,
+        &bench::shell_command_line(&args),
+        &mut |line| eprintln!("[compression] {line}"),
+    )
+    .context("compression report")?;
+    match output {
+        Some(path) => {
+            write_atomic(&path, report.as_bytes(), None)
+                .with_context(|| format!("writing {}", path.display()))?;
+            eprintln!("wrote {}", path.display());
+        }
+        None => print!("{report}"),
     }
     Ok(())
 }

@@ -7,9 +7,11 @@
 mod common;
 
 use proptest::prelude::*;
+use radiosity::bakefile::container::{encode_sections, header_checksum, ENTRY_LEN, HEADER_LEN};
+use radiosity::bakefile::hash::Fnv1a64;
 use radiosity::bakefile::{
-    self, crc32, encode, encode_sections, header_checksum, parse, tag, BakeFile, BakeFileError,
-    CodecBlob, Crc32, Fnv1a64, PatchRecord, SceneHash, ENTRY_LEN, FORMAT_VERSION, HEADER_LEN,
+    self, crc32, encode, parse, tag, BakeFile, BakeFileError, CodecBlob, Crc32, PatchRecord,
+    SceneHash, FORMAT_VERSION,
 };
 use std::path::Path;
 
@@ -208,7 +210,10 @@ fn layout_matches_the_documented_header() {
     assert_eq!(get_u64(&bytes, 16), bytes.len() as u64);
     assert_eq!(u32::from_le_bytes(bytes[24..28].try_into().unwrap()), 12);
     let secs = bakefile::sections(&bytes, "test").unwrap();
-    assert_eq!(secs.iter().map(|s| s.tag).collect::<Vec<_>>(), tag::V1);
+    assert_eq!(
+        secs.iter().map(|s| s.tag).collect::<Vec<_>>(),
+        tag::REQUIRED
+    );
     for s in &secs {
         assert_eq!(s.offset % 8, 0, "{} is aligned", bakefile::tag_name(s.tag));
     }
@@ -267,16 +272,31 @@ fn rejects_wrong_magic() {
 #[test]
 fn rejects_a_newer_version_with_a_clear_message() {
     let mut bytes = encode(&sample()).unwrap();
-    bytes[8..12].copy_from_slice(&2u32.to_le_bytes());
+    let newer = FORMAT_VERSION + 1;
+    bytes[8..12].copy_from_slice(&newer.to_le_bytes());
     // Whatever follows the version is not looked at (it may be a new layout).
     bytes[40..].iter_mut().for_each(|b| *b = 0xAA);
     let (e, m) = reject(&bytes);
     assert!(
-        matches!(e, BakeFileError::NewerVersion { found: 2, .. }),
+        matches!(e, BakeFileError::NewerVersion { found, .. } if found == newer),
         "{m}"
     );
     assert!(
-        m.ends_with("written by a newer radiosity (format v2); this build reads v1"),
+        m.ends_with(&format!(
+            "written by a newer radiosity (format v{newer}); this build reads v{FORMAT_VERSION}"
+        )),
+        "{m}"
+    );
+    // An older version is refused before its layout is read, asking for a
+    // new bake.
+    bytes[8..12].copy_from_slice(&1u32.to_le_bytes());
+    let (e, m) = reject(&bytes);
+    assert!(
+        matches!(e, BakeFileError::OlderVersion { found: 1, .. }),
+        "{m}"
+    );
+    assert!(
+        m.contains("older radiosity (format v1)") && m.contains("bake the scene again"),
         "{m}"
     );
     bytes[8..12].copy_from_slice(&0u32.to_le_bytes());
@@ -411,7 +431,7 @@ fn rejects_a_duplicated_section() {
 
 #[test]
 fn rejects_a_missing_required_section() {
-    for missing in tag::V1 {
+    for missing in tag::REQUIRED {
         let secs = sections_of(&encode(&sample()).unwrap());
         let refs: Vec<([u8; 4], &[u8])> = secs
             .iter()

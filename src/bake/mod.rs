@@ -19,7 +19,11 @@ pub mod reorder;
 pub mod transfer;
 pub mod voxelize;
 
+use crate::bakefile::baked::stored_scene_path;
 use crate::bakefile::codec::{CodecKind, Encoded};
+use crate::bakefile::records::{
+    BakeInfo, BouncesRecord, OptionsRecord, INFO_RECORD_VERSION, OPTIONS_RECORD_VERSION,
+};
 use crate::bakefile::{self, BakeFile, PatchRecord, SceneHash};
 use crate::core::compute::Backend;
 use crate::core::compute::{DeviceSelection, Gpu};
@@ -184,7 +188,6 @@ impl CodecSummary {
     /// The summary of `e` (error measured elsewhere).
     pub fn of(e: &Encoded, chosen_by: String, h_error: Option<f64>, lights: usize) -> CodecSummary {
         let entries = (e.n * e.n).max(1) as f64;
-        let tiles = e.index.tiles_per_side * e.index.tiles_per_side;
         CodecSummary {
             codec: e.kind.name(),
             chosen_by,
@@ -195,11 +198,7 @@ impl CodecSummary {
             bytes_per_entry_dense: e.bytes_dense() as f64 / entries,
             bytes_per_entry_sparse: e.bytes_sparse() as f64 / entries,
             compression_ratio: 12.0 * entries / e.bytes_total().max(1) as f64,
-            zero_tile_fraction: if tiles == 0 {
-                0.0
-            } else {
-                1.0 - e.index.cols.len() as f64 / tiles as f64
-            },
+            zero_tile_fraction: e.zero_tile_fraction(),
             h_error,
             error_lights: lights,
             error_lights_seed: ERROR_LIGHTS_SEED,
@@ -256,40 +255,6 @@ pub struct BakeReport {
     /// The bake file written, if any.
     pub output: Option<PathBuf>,
     pub stages: Vec<StageTime>,
-}
-
-/// The deterministic part of a bake's report, stored in the file's `INFO`
-/// section and read back by `radiosity info`.
-#[derive(Clone, Debug, Serialize, serde::Deserialize)]
-pub struct BakeInfo {
-    /// The program that wrote the file.
-    pub generator: String,
-    pub scene: String,
-    pub triangles: u64,
-    pub vertices: u64,
-    pub voxel_size: f64,
-    /// Patches in the matrix (those that see something).
-    pub patches: u64,
-    /// `k` or `"inf"`.
-    pub bounces: serde_json::Value,
-    pub grey: bool,
-    pub spectral_bound: f64,
-    pub reorder: String,
-    pub codec: String,
-    pub chosen_by: String,
-    pub h_error: Option<f64>,
-    pub error_lights: u64,
-    pub error_lights_seed: u64,
-    pub mesh_map_fallbacks: u64,
-    pub mesh_map_unmapped: u64,
-}
-
-/// `k` or `"inf"`, as `info --json` reports bounces.
-pub fn bounces_json(b: Bounces) -> serde_json::Value {
-    match b {
-        Bounces::K(k) => serde_json::Value::from(k),
-        Bounces::Infinite => serde_json::Value::from("inf"),
-    }
 }
 
 /// The result of a bake.
@@ -444,27 +409,45 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     });
 
     // Stage 8: the bake file.
-    let info = BakeInfo {
-        generator: format!("radiosity {}", env!("CARGO_PKG_VERSION")),
-        scene: config.scene.display().to_string(),
-        triangles: scene.triangles.len() as u64,
-        vertices: scene.positions.len() as u64,
+    let options = OptionsRecord {
+        record_version: OPTIONS_RECORD_VERSION,
+        target_patches: match config.resolution {
+            Resolution::Patches(p) => Some(p as u64),
+            Resolution::VoxelSize(_) => None,
+        },
         voxel_size: vox.stats.voxel_size,
-        patches: n as u64,
-        bounces: bounces_json(config.transfer.bounces),
-        grey: tr.grey,
-        spectral_bound: tr.stats.spectral_bound,
+        ff_samples: config.form_factor.samples,
+        ff_rays: config.form_factor.rays,
+        ff_quadrature_tol: config.form_factor.quadrature_tol,
+        bounces: match config.transfer.bounces {
+            Bounces::K(k) => BouncesRecord::K(k),
+            Bounces::Infinite => BouncesRecord::INFINITE,
+        },
         reorder: method.name(),
         codec: encoded.kind.name(),
-        chosen_by: summary.chosen_by.clone(),
-        h_error,
+        codec_choice: summary.chosen_by.clone(),
         error_lights: b0_samples.len() as u64,
         error_lights_seed: ERROR_LIGHTS_SEED,
+    };
+    let scene_stored = match &config.output {
+        Some(out) => stored_scene_path(out, &config.scene),
+        None => config.scene.display().to_string(),
+    };
+    let info = BakeInfo {
+        record_version: INFO_RECORD_VERSION,
+        generator: format!("radiosity {}", env!("CARGO_PKG_VERSION")),
+        scene: scene_stored,
+        triangles: scene.triangles.len() as u64,
+        vertices: scene.positions.len() as u64,
+        patches: n as u64,
+        grey: tr.grey,
+        spectral_bound: tr.stats.spectral_bound,
+        h_error,
         mesh_map_fallbacks: map.stats.fallbacks,
         mesh_map_unmapped: map.stats.unmapped,
     };
     let file = BakeFile {
-        options_json: serde_json::to_string(config).expect("options serialize"),
+        options_json: serde_json::to_string(&options).expect("options serialize"),
         scene_hash: SceneHash::of_scene(&scene)?,
         patches: patches.iter().map(PatchRecord::from).collect(),
         permutation: perm.order.clone(),
@@ -865,135 +848,5 @@ impl std::fmt::Display for BakeReport {
             Some(p) => writeln!(f, "  wrote {}", p.display()),
             None => writeln!(f, "  no bake file written (give -o OUT.rad)"),
         }
-    }
-}
-
-/// What `radiosity info OUT.rad` reports: the bake's own report from the
-/// file's `INFO` section, with the sizes recomputed from the codec sections
-/// (which are decoded and validated, so a file `info` accepts is one the
-/// run time can use).
-#[derive(Clone, Debug, Serialize)]
-pub struct FileSummary {
-    pub file: PathBuf,
-    pub bytes_file: u64,
-    pub format_version: u32,
-    pub patches: u64,
-    /// `k` or `"inf"`.
-    pub bounces: serde_json::Value,
-    pub reorder: String,
-    pub codec: String,
-    pub bytes_per_entry: f64,
-    pub bytes_dense: u64,
-    pub bytes_sparse: u64,
-    pub bytes_index: u64,
-    pub zero_tile_fraction: f64,
-    /// Relative RMS error of `H` measured at bake time.
-    pub h_error: Option<f64>,
-    pub error_lights: u64,
-    pub mesh_map_vertices: u64,
-    pub scene: String,
-    /// Whether the scene files still hash as they did at bake time:
-    /// `"unchanged"`, `"changed: obj, mtl"`, or why it could not be checked.
-    pub scene_status: String,
-    pub info: BakeInfo,
-}
-
-/// Reads, validates and summarises the bake file at `path`.
-pub fn describe(path: &Path) -> anyhow::Result<FileSummary> {
-    let bytes_file = std::fs::metadata(path)
-        .with_context(|| format!("reading {}", path.display()))?
-        .len();
-    let file = bakefile::read(path)?;
-    let encoded = Encoded::from_blob(&file.codec)
-        .with_context(|| format!("{}: the compressed matrix is invalid", path.display()))?;
-    let info: BakeInfo = serde_json::from_str(&file.info_json).with_context(|| {
-        format!(
-            "{}: section INFO is not a bake report of this version",
-            path.display()
-        )
-    })?;
-    let scene_path = PathBuf::from(&info.scene);
-    let scene_status = match scene::load(&scene_path) {
-        Err(e) => format!("not checked: {e}"),
-        Ok(s) => match SceneHash::of_scene(&s) {
-            Err(e) => format!("not checked: {e}"),
-            Ok(h) => {
-                let d = file.scene_hash.differences(&h);
-                if d.is_empty() {
-                    "unchanged".into()
-                } else {
-                    format!("changed since the bake: {}", d.join(", "))
-                }
-            }
-        },
-    };
-    let codec = CodecSummary::of(&encoded, info.chosen_by.clone(), info.h_error, 0);
-    Ok(FileSummary {
-        file: path.to_path_buf(),
-        bytes_file,
-        format_version: bakefile::FORMAT_VERSION,
-        patches: file.patches.len() as u64,
-        bounces: info.bounces.clone(),
-        reorder: info.reorder.clone(),
-        codec: codec.codec,
-        bytes_per_entry: codec.bytes_per_entry,
-        bytes_dense: codec.bytes_dense,
-        bytes_sparse: codec.bytes_sparse,
-        bytes_index: codec.bytes_index,
-        zero_tile_fraction: codec.zero_tile_fraction,
-        h_error: info.h_error,
-        error_lights: info.error_lights,
-        mesh_map_vertices: file.mesh_map.len() as u64,
-        scene: info.scene.clone(),
-        scene_status,
-        info,
-    })
-}
-
-impl std::fmt::Display for FileSummary {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(
-            f,
-            "{}: radiosity bake, format v{}, {} bytes",
-            self.file.display(),
-            self.format_version,
-            self.bytes_file
-        )?;
-        writeln!(f, "scene: {} ({})", self.scene, self.scene_status)?;
-        let bounces = match self.bounces.as_str() {
-            Some(s) => s.to_string(),
-            None => self.bounces.to_string(),
-        };
-        writeln!(
-            f,
-            "patches: {}; bounces: {bounces}; reorder: {}",
-            self.patches, self.reorder
-        )?;
-        let entries = (self.patches * self.patches).max(1) as f64;
-        writeln!(
-            f,
-            "codec: {}; bytes per matrix entry {:.4} (dense {:.4}, sparse {:.4}, index {:.4}); \
-             zero tiles skipped {:.1} %",
-            self.codec,
-            self.bytes_per_entry,
-            self.bytes_dense as f64 / entries,
-            self.bytes_sparse as f64 / entries,
-            self.bytes_index as f64 / entries,
-            100.0 * self.zero_tile_fraction
-        )?;
-        match self.h_error {
-            Some(e) => writeln!(
-                f,
-                "compression error at bake time: {:.3} % relative RMS of H over {} random lights",
-                100.0 * e,
-                self.error_lights
-            )?,
-            None => writeln!(f, "compression error: not measured at bake time")?,
-        }
-        writeln!(
-            f,
-            "mesh map: {} vertices ({} fallbacks, {} unmapped)",
-            self.mesh_map_vertices, self.info.mesh_map_fallbacks, self.info.mesh_map_unmapped
-        )
     }
 }

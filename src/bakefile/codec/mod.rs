@@ -597,6 +597,17 @@ impl Encoded {
         self.bytes_dense() + self.bytes_sparse() + self.bytes_index()
     }
 
+    /// The share of the dense part's tiles that are zero in every channel
+    /// and therefore neither stored nor read.
+    pub fn zero_tile_fraction(&self) -> f64 {
+        let tiles = self.index.tiles_per_side * self.index.tiles_per_side;
+        if tiles == 0 {
+            0.0
+        } else {
+            1.0 - self.index.cols.len() as f64 / tiles as f64
+        }
+    }
+
     /// All bytes per matrix entry, the three channels together:
     /// `bytes_total / n²` (module doc).
     pub fn bytes_per_entry(&self) -> f64 {
