@@ -25,12 +25,12 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use radiosity::bake::encode;
-use radiosity::bakefile::{
-    self, crc32, encode, header_checksum, parse, BakeFile, PatchRecord, SceneHash, ENTRY_LEN,
-    HEADER_LEN,
-};
-use radiosity::bakefile::codec::{self, CodecKind, Encoded};
+use radiosity::bake::encode::encode as encode_matrix;
+use radiosity::bakefile::baked::Baked;
+use radiosity::bakefile::codec::{CodecKind, Encoded};
+use radiosity::bakefile::container::{header_checksum, ENTRY_LEN, HEADER_LEN};
+use radiosity::bakefile::records::{BakeInfo, BouncesRecord, OptionsRecord};
+use radiosity::bakefile::{self, crc32, encode, parse, BakeFile, PatchRecord, SceneHash};
 use std::sync::OnceLock;
 
 /// A small valid bake file: 3 patches, 4 vertices.
@@ -38,7 +38,21 @@ fn base() -> &'static [u8] {
     static BASE: OnceLock<Vec<u8>> = OnceLock::new();
     BASE.get_or_init(|| {
         let bf = BakeFile {
-            options_json: r#"{"voxel_size":0.25}"#.into(),
+            options_json: serde_json::to_string(&OptionsRecord {
+                record_version: 1,
+                target_patches: Some(3),
+                voxel_size: 0.25,
+                ff_samples: 4,
+                ff_rays: 4,
+                ff_quadrature_tol: 1e-3,
+                bounces: BouncesRecord::INFINITE,
+                reorder: "none".into(),
+                codec: "bc1".into(),
+                codec_choice: "fixed".into(),
+                error_lights: 0,
+                error_lights_seed: 1,
+            })
+            .unwrap(),
             scene_hash: SceneHash {
                 obj: 1,
                 obj_len: 2,
@@ -62,7 +76,7 @@ fn base() -> &'static [u8] {
                     (0..9).map(|k| ((k * 5 + c) % 7) as f32 * 0.01).collect()
                 });
                 let kind = CodecKind::parse("bc1:top=0.25,sparse=rgb9e5").unwrap();
-                encode::encode(kind, [&t[0], &t[1], &t[2]], 3)
+                encode_matrix(kind, [&t[0], &t[1], &t[2]], 3)
                     .unwrap()
                     .to_blob()
             },
@@ -72,7 +86,20 @@ fn base() -> &'static [u8] {
                 [(0, 0.0); 4],
                 [(2, 0.25), (1, 0.25), (0, 0.5), (0, 0.0)],
             ],
-            info_json: "[1,2,3]".into(),
+            info_json: serde_json::to_string(&BakeInfo {
+                record_version: 1,
+                generator: "fuzz".into(),
+                scene: "scene.obj".into(),
+                triangles: 2,
+                vertices: 4,
+                patches: 3,
+                grey: false,
+                spectral_bound: 0.5,
+                h_error: None,
+                mesh_map_fallbacks: 0,
+                mesh_map_unmapped: 0,
+            })
+            .unwrap(),
         };
         encode(&bf).expect("the base file is valid")
     })
@@ -128,6 +155,11 @@ fuzz_target!(|data: &[u8]| {
         if let Ok(e) = Encoded::from_blob(&bf.codec) {
             let b0 = vec![1.0f32; e.n];
             let _ = e.gather([&b0, &b0, &b0]);
+        }
+        // The whole load the run time does: records, codec, permutation.
+        if let Ok(b) = Baked::from_file(&bf, "fuzz") {
+            let h = vec![[1.0f32; 3]; b.patches.len()];
+            let _ = b.interpolate_vertices(&h);
         }
     }
     let _ = bakefile::sections(&edited, "fuzz");
