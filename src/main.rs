@@ -4,6 +4,7 @@
 
 use anyhow::{bail, Context as _};
 use clap::{Args, Parser, Subcommand};
+use radiosity::bake::error::BakeError;
 use radiosity::bake::form_factor::FormFactorOptions;
 use radiosity::bake::reorder::ReorderMethod;
 use radiosity::bake::transfer::{Bounces, TransferOptions};
@@ -250,7 +251,7 @@ impl BakeArgs {
             (Some(e), _, _) => CodecChoice::MaxError(e),
             (None, name, top) => {
                 let mut kind = match name {
-                    Some(n) => CodecKind::parse(&n)?,
+                    Some(n) => CodecKind::parse(&n).context("option --codec")?,
                     None => CodecKind::default(),
                 };
                 if let Some(f) = top {
@@ -265,7 +266,8 @@ impl BakeArgs {
             .reorder
             .as_deref()
             .map(ReorderMethod::parse)
-            .transpose()?;
+            .transpose()
+            .map_err(with_flag)?;
         let config = BakeConfig {
             scene: self.scene,
             resolution,
@@ -278,8 +280,32 @@ impl BakeArgs {
             output: self.output,
             export: self.export,
         };
-        config.validate()?;
+        config.validate().map_err(with_flag)?;
         Ok((config, self.json))
+    }
+}
+
+/// The command-line flag that sets a library option (library messages name
+/// options, not flags).
+fn flag_of(option: &str) -> Option<&'static str> {
+    Some(match option {
+        "voxel size" => "--voxel-size",
+        "patch count" => "--patches",
+        "maximum codec error" => "--max-error",
+        "error lights" => "--error-lights",
+        "reordering" | "greedy reordering passes" => "--reorder",
+        "form-factor samples per side" => "--ff-samples",
+        "form-factor rays per pair" => "--ff-rays",
+        "bounces" => "--bounces",
+        _ => return None,
+    })
+}
+
+/// A bake error, with the flag of the option at fault named.
+fn with_flag(e: BakeError) -> anyhow::Error {
+    match e.option().and_then(flag_of) {
+        Some(flag) => anyhow::Error::new(e).context(format!("option {flag}")),
+        None => e.into(),
     }
 }
 

@@ -4,10 +4,10 @@
 
 mod common;
 
+use radiosity::bake::error::BakeError;
 use radiosity::bake::gemm::{self, Gemm, GemmConfig, Layout};
 use radiosity::bake::transfer::{self, Bounces, Transfer, TransferOptions};
 use radiosity::core::compute::Backend;
-use radiosity::core::error::BakeError;
 use radiosity::synthetic;
 
 /// f32 unit roundoff.
@@ -338,7 +338,7 @@ fn bad_inputs_are_rejected_naming_what_is_wrong() {
         assert!(
             matches!(
                 err,
-                BakeError::Stage {
+                BakeError::Numeric {
                     stage: "transfer",
                     ..
                 }
@@ -357,7 +357,7 @@ fn bad_inputs_are_rejected_naming_what_is_wrong() {
     let err = run(&f, n, &good, Bounces::K(2), &backend).unwrap_err();
     let msg = err.to_string();
     assert!(
-        msg.starts_with("stage transfer:") && msg.contains("F[3][7] = NaN"),
+        msg.starts_with("transfer:") && msg.contains("F[3][7] = NaN"),
         "{msg}"
     );
     f[3 * n + 7] = f32::INFINITY;
@@ -373,18 +373,19 @@ fn bad_inputs_are_rejected_naming_what_is_wrong() {
     let msg = err.to_string();
     println!("{msg}");
     assert!(
-        msg.starts_with("stage transfer:")
-            && msg.contains("non-finite")
-            && msg.contains("doubling"),
+        msg.starts_with("transfer:") && msg.contains("non-finite") && msg.contains("doubling"),
         "{msg}"
     );
     assert!(matches!(
         run(&open.f, n, &good, Bounces::K(0), &backend),
-        Err(BakeError::Options(_))
+        Err(BakeError::InvalidOption {
+            option: "bounces",
+            ..
+        })
     ));
     assert!(matches!(
         run(&open.f[1..], n, &good, Bounces::K(1), &backend),
-        Err(BakeError::Options(_))
+        Err(BakeError::Mismatch { .. })
     ));
 }
 

@@ -155,9 +155,9 @@ use crate::core::compute::Backend;
 
 use crate::core::patch::Grid;
 
+use crate::bake::error::BakeError;
 use crate::core::bvh::{self, Bvh, BvhStats, Cert, Node, Square, Tri};
 use crate::core::compute::{round_up, Access, Gpu};
-use crate::core::error::BakeError;
 use crate::core::math::{add, cross, dot, f64s, scale, sub, unit};
 use crate::core::npy;
 use crate::core::patch::Patch;
@@ -278,34 +278,38 @@ impl FormFactorOptions {
     /// Checks the ranges above.
     pub fn validate(&self) -> Result<(), BakeError> {
         if !(1..=MAX_SAMPLES).contains(&self.samples) {
-            return Err(BakeError::Options(format!(
-                "form-factor samples per side must be in 1..={MAX_SAMPLES}, got {}",
-                self.samples
-            )));
+            return Err(BakeError::InvalidOption {
+                option: "form-factor samples per side",
+                value: self.samples.to_string(),
+                expected: format!("1..={MAX_SAMPLES}"),
+            });
         }
         if !(1..=MAX_RAYS).contains(&self.rays) {
-            return Err(BakeError::Options(format!(
-                "form-factor rays per pair must be in 1..={MAX_RAYS}, got {}",
-                self.rays
-            )));
+            return Err(BakeError::InvalidOption {
+                option: "form-factor rays per pair",
+                value: self.rays.to_string(),
+                expected: format!("1..={MAX_RAYS}"),
+            });
         }
         if !(self.quadrature_tol.is_finite()
             && self.quadrature_tol > 0.0
             && self.quadrature_tol < 1.0)
         {
-            return Err(BakeError::Options(format!(
-                "form-factor quadrature_tol must be in (0, 1), got {}",
-                self.quadrature_tol
-            )));
+            return Err(BakeError::InvalidOption {
+                option: "form-factor quadrature tolerance",
+                value: self.quadrature_tol.to_string(),
+                expected: "a number in (0, 1)".into(),
+            });
         }
         if !(self.batch_seconds.is_finite()
             && self.batch_seconds > 0.0
             && self.batch_seconds <= 10.0)
         {
-            return Err(BakeError::Options(format!(
-                "form-factor batch_seconds must be in (0, 10], got {}",
-                self.batch_seconds
-            )));
+            return Err(BakeError::InvalidOption {
+                option: "form-factor batch seconds",
+                value: self.batch_seconds.to_string(),
+                expected: "a number in (0, 10]".into(),
+            });
         }
         Ok(())
     }
@@ -505,17 +509,17 @@ pub fn prepare(
 ) -> Result<Prepared, BakeError> {
     options.validate()?;
     if patches.len() > u32::MAX as usize / 2 {
-        return Err(BakeError::Options(format!(
-            "{} patches are too many",
-            patches.len()
-        )));
+        return Err(BakeError::TooLarge {
+            stage: "form factors",
+            detail: format!("{} patches are too many", patches.len()),
+        });
     }
     for (i, p) in patches.iter().enumerate() {
         let finite = p.centre.iter().chain(&p.normal).all(|x| x.is_finite()) && p.area.is_finite();
         if !finite || !(p.area > 0.0) || !(dot(p.normal, p.normal) > 0.0) {
-            return Err(BakeError::Stage {
+            return Err(BakeError::Numeric {
                 stage: "form factors",
-                message: format!(
+                detail: format!(
                     "patch {i} is degenerate: centre {:?}, normal {:?}, area {}",
                     p.centre, p.normal, p.area
                 ),
@@ -546,9 +550,9 @@ pub fn prepare(
     let tol = (PLANE_TOL * grid.size) as f32;
     square_certificates(&mut bvh, &patches_cl, tol as f64);
     if bvh.stats.max_depth as usize + 2 > bvh::STACK {
-        return Err(BakeError::Stage {
+        return Err(BakeError::TooLarge {
             stage: "form factors",
-            message: format!(
+            detail: format!(
                 "BVH depth {} exceeds the traversal stack of {}",
                 bvh.stats.max_depth,
                 bvh::STACK
@@ -1238,9 +1242,9 @@ fn finish(
         for j in i + 1..n {
             let v = &mut g[i * n + j];
             if !v.is_finite() {
-                return Err(BakeError::Stage {
+                return Err(BakeError::Numeric {
                     stage: "form factors",
-                    message: format!("pair ({i}, {j}) gave a non-finite value {v}"),
+                    detail: format!("pair ({i}, {j}) gave a non-finite value {v}"),
                 });
             }
             if *v < 0.0 {
@@ -1322,9 +1326,9 @@ fn finish(
 pub fn write_f_npy(path: &Path, ff: &FormFactors) -> Result<(), BakeError> {
     let bytes = (ff.n as u64) * (ff.n as u64) * 4;
     if bytes > NPY_MAX_BYTES {
-        return Err(BakeError::Stage {
+        return Err(BakeError::TooLarge {
             stage: "form factors",
-            message: format!(
+            detail: format!(
                 "refusing to write {}: the {}×{} matrix takes {} bytes, above the {} byte limit of .npy exports; use fewer patches",
                 path.display(),
                 ff.n,
@@ -1334,9 +1338,9 @@ pub fn write_f_npy(path: &Path, ff: &FormFactors) -> Result<(), BakeError> {
             ),
         });
     }
-    npy::write_f32(path, &[ff.n, ff.n], &ff.f).map_err(|e| BakeError::Stage {
+    npy::write_f32(path, &[ff.n, ff.n], &ff.f).map_err(|e| BakeError::Mismatch {
         stage: "form factors",
-        message: e.to_string(),
+        detail: e.to_string(),
     })
 }
 
@@ -1358,9 +1362,9 @@ pub struct Comparison {
 /// Compares two results entry by entry (both must keep the same patches).
 pub fn compare(a: &FormFactors, b: &FormFactors) -> Result<Comparison, BakeError> {
     if a.kept != b.kept {
-        return Err(BakeError::Stage {
+        return Err(BakeError::Mismatch {
             stage: "form factors",
-            message: format!("the results keep different patches ({} vs {})", a.n, b.n),
+            detail: format!("the results keep different patches ({} vs {})", a.n, b.n),
         });
     }
     let mut c = Comparison {

@@ -37,8 +37,8 @@
 //! [`bench_gemm`] measures GFLOP/s against faer's f32 product in the same
 //! run.
 
+use crate::bake::error::BakeError;
 use crate::core::compute::{round_up, Access, DeviceInfo, Gpu};
-use crate::core::error::BakeError;
 use opencl3::kernel::{ExecuteKernel, Kernel};
 use opencl3::memory::Buffer;
 use serde::Serialize;
@@ -191,13 +191,18 @@ impl GemmConfig {
             && self.tile.is_multiple_of(self.mr * ly)
             && self.tile.is_multiple_of(self.nr * lx);
         if !ok {
-            return Err(BakeError::Options(format!(
-                "invalid GEMM configuration {self:?}: the tile must be a multiple of 4, of \
+            return Err(BakeError::Mismatch {
+                stage: "transfer",
+                detail: format!(
+                    "invalid GEMM configuration {self:?}: the tile must be a multiple of 4, of \
                  MR × LY and of NR × LX, and NR a multiple of the vector width (4, 8 or 16)"
-            )));
+                ),
+            });
         }
         if !self.fits(info) {
-            return Err(BakeError::Options(format!(
+            return Err(BakeError::TooLarge {
+                stage: "transfer",
+                detail: format!(
                 "GEMM configuration {self:?} needs {} work-items and {} bytes of local memory; \
                  the device {} allows {} and {}",
                 self.work_items(),
@@ -205,7 +210,8 @@ impl GemmConfig {
                 info.name,
                 info.max_work_group_size,
                 info.local_mem_bytes
-            )));
+            ),
+            });
         }
         Ok(())
     }
@@ -336,12 +342,15 @@ impl<'g> Gemm<'g> {
         // CL_KERNEL_WORK_GROUP_SIZE).
         let allowed = gpu.local_size(&gemm, config.work_items());
         if allowed < config.work_items() {
-            return Err(BakeError::Options(format!(
-                "GEMM configuration {config} needs {} work-items per group; the compiled \
+            return Err(BakeError::TooLarge {
+                stage: "transfer",
+                detail: format!(
+                    "GEMM configuration {config} needs {} work-items per group; the compiled \
                  kernel allows {allowed} on {}",
-                config.work_items(),
-                gpu.info().name
-            )));
+                    config.work_items(),
+                    gpu.info().name
+                ),
+            });
         }
         Ok(Gemm {
             gpu,

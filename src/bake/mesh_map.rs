@@ -90,8 +90,8 @@
 
 use crate::bake::voxelize::Voxelization;
 
+use crate::bake::error::BakeError;
 use crate::core::bvh::Bvh;
-use crate::core::error::BakeError;
 use crate::core::math::{add, cross, dot, norm, scale, sub, tangent_basis};
 use crate::core::patch::Direction;
 use crate::core::scene::Scene;
@@ -293,9 +293,9 @@ pub fn build_with(
     options: &MeshMapOptions,
 ) -> Result<MeshMap, BakeError> {
     let start = Instant::now();
-    let stage_err = |message: String| BakeError::Stage {
+    let stage_err = |detail: String| BakeError::Mismatch {
         stage: "mesh map",
-        message,
+        detail,
     };
     if patch_index_of.len() != vox.patches.len() {
         return Err(stage_err(format!(
@@ -312,7 +312,10 @@ pub fn build_with(
         )));
     }
     if scene.positions.len() > u32::MAX as usize {
-        return Err(stage_err("more than 2^32 vertices".into()));
+        return Err(BakeError::TooLarge {
+            stage: "mesh map",
+            detail: "more than 2^32 vertices".into(),
+        });
     }
     let grid = vox.grid;
     let mut stats = MeshMapStats {

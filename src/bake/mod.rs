@@ -11,6 +11,7 @@
 //! the terminal report only.
 
 pub mod encode;
+pub mod error;
 pub mod form_factor;
 pub mod gemm;
 pub mod mesh_map;
@@ -19,6 +20,7 @@ pub mod reorder;
 pub mod transfer;
 pub mod voxelize;
 
+use crate::bake::error::BakeError;
 use crate::bakefile::baked::stored_scene_path;
 use crate::bakefile::codec::{CodecKind, Encoded};
 use crate::bakefile::records::{
@@ -28,7 +30,6 @@ use crate::bakefile::{self, BakeFile, PatchRecord, SceneHash};
 use crate::core::compute::Backend;
 use crate::core::compute::{DeviceSelection, Gpu};
 use crate::core::direct;
-use crate::core::error::BakeError;
 use crate::core::npy;
 use crate::core::patch::Patch;
 use crate::core::permutation::Permutation;
@@ -121,28 +122,36 @@ impl BakeConfig {
     pub fn validate(&self) -> Result<(), BakeError> {
         match self.resolution {
             Resolution::VoxelSize(s) if !(s.is_finite() && s > 0.0) => {
-                return Err(BakeError::Options(format!(
-                    "--voxel-size must be a positive finite number, got {s}"
-                )))
+                return Err(BakeError::InvalidOption {
+                    option: "voxel size",
+                    value: s.to_string(),
+                    expected: "a positive finite number".into(),
+                })
             }
             Resolution::Patches(0) => {
-                return Err(BakeError::Options("--patches must be at least 1".into()))
+                return Err(BakeError::InvalidOption {
+                    option: "patch count",
+                    value: "0".into(),
+                    expected: "at least 1".into(),
+                })
             }
             _ => {}
         }
         match self.codec {
             CodecChoice::Fixed(kind) => kind.validate()?,
             CodecChoice::MaxError(e) if !(e.is_finite() && e >= 0.0) => {
-                return Err(BakeError::Options(format!(
-                    "--max-error must be a finite number ≥ 0, got {e}"
-                )))
+                return Err(BakeError::InvalidOption {
+                    option: "maximum codec error",
+                    value: e.to_string(),
+                    expected: "a finite number ≥ 0".into(),
+                })
             }
             CodecChoice::MaxError(_) if self.error_lights == 0 => {
-                return Err(BakeError::Options(
-                    "--max-error measures the error over random lights: --error-lights must \
-                     be at least 1"
-                        .into(),
-                ))
+                return Err(BakeError::InvalidOption {
+                    option: "error lights",
+                    value: "0".into(),
+                    expected: "at least 1 when the codec is chosen by its error".into(),
+                })
             }
             CodecChoice::MaxError(_) => {}
         }
@@ -236,7 +245,7 @@ impl std::fmt::Display for CodecSummary {
                 self.error_lights,
                 self.error_lights_seed
             ),
-            None => write!(f, "  compression error: not measured (--error-lights 0)"),
+            None => write!(f, "  compression error: not measured (no error lights)"),
         }
     }
 }

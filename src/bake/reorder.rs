@@ -53,8 +53,8 @@
 use crate::core::compute::Backend;
 use crate::core::permutation::Permutation;
 
+use crate::bake::error::BakeError;
 use crate::core::compute::{Access, Gpu};
-use crate::core::error::BakeError;
 use crate::core::patch::Patch;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -120,9 +120,11 @@ impl ReorderMethod {
             "greedy" => Ok(ReorderMethod::Greedy { passes: 2 }),
             _ => match s.strip_prefix("greedy:").map(str::parse::<u32>) {
                 Some(Ok(passes)) if passes >= 1 => Ok(ReorderMethod::Greedy { passes }),
-                _ => Err(BakeError::Options(format!(
-                    "unknown reordering {s:?}: expected none, greedy, greedy:PASSES (≥ 1) or hilbert"
-                ))),
+                _ => Err(BakeError::InvalidOption {
+                    option: "reordering",
+                    value: format!("{s:?}"),
+                    expected: "none, greedy, greedy:PASSES (≥ 1) or hilbert".into(),
+                }),
             },
         }
     }
@@ -155,11 +157,14 @@ pub struct ReorderStats {
 fn check_input(t: [&[f32]; 3], n: usize) -> Result<(), BakeError> {
     for (c, ch) in t.iter().enumerate() {
         if ch.len() != n * n {
-            return Err(BakeError::Options(format!(
-                "transfer channel {c} has {} entries, expected n² = {}",
-                ch.len(),
-                n * n
-            )));
+            return Err(BakeError::Mismatch {
+                stage: "reorder",
+                detail: format!(
+                    "transfer channel {c} has {} entries, expected n² = {}",
+                    ch.len(),
+                    n * n
+                ),
+            });
         }
     }
     Ok(())
@@ -196,26 +201,34 @@ pub fn reorder_with_stats(
         ReorderMethod::None => Permutation::identity(n),
         ReorderMethod::SpaceFillingCurve => {
             if patches.len() != n {
-                return Err(BakeError::Options(format!(
-                    "the curve order needs the {n} patches of the matrix, got {}",
-                    patches.len()
-                )));
+                return Err(BakeError::Mismatch {
+                    stage: "reorder",
+                    detail: format!(
+                        "the curve order needs the {n} patches of the matrix, got {}",
+                        patches.len()
+                    ),
+                });
             }
             hilbert_order(patches)
         }
         ReorderMethod::Greedy { passes } => {
             if passes == 0 {
-                return Err(BakeError::Options(
-                    "greedy reordering needs at least one pass".into(),
-                ));
+                return Err(BakeError::InvalidOption {
+                    option: "greedy reordering passes",
+                    value: "0".into(),
+                    expected: "at least 1".into(),
+                });
             }
             if n > MAX_GREEDY_PATCHES {
-                return Err(BakeError::Options(format!(
-                    "greedy reordering of {n} patches needs an n × n distance matrix \
+                return Err(BakeError::TooLarge {
+                    stage: "reorder",
+                    detail: format!(
+                        "greedy reordering of {n} patches needs an n × n distance matrix \
                      ({:.1} GiB) and O(n³) work; the limit is {MAX_GREEDY_PATCHES} patches: \
-                     use the Hilbert curve order (--reorder hilbert) instead",
-                    (n * n * 4) as f64 / (1u64 << 30) as f64
-                )));
+                     use the Hilbert curve order instead",
+                        (n * n * 4) as f64 / (1u64 << 30) as f64
+                    ),
+                });
             }
             let x = features.matrix();
             let d = features.dim();
@@ -399,9 +412,10 @@ pub fn cl_distances_batched(
         return Ok((Vec::new(), 0.0));
     }
     if n > u32::MAX as usize || d > u32::MAX as usize {
-        return Err(BakeError::Options(format!(
-            "{n} × {d} features exceed the 2^32 limit"
-        )));
+        return Err(BakeError::TooLarge {
+            stage: "reorder",
+            detail: format!("{n} × {d} features exceed the 2^32 limit"),
+        });
     }
     // 16 × 16 work-groups where the device allows 256 work-items, else 8 × 8.
     let mut tile = if gpu.info().max_work_group_size >= 256 {

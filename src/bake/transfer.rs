@@ -56,7 +56,7 @@
 //!
 //! **Safety.** Albedos outside `[0, 1)` and non-finite or negative form
 //! factors are rejected, naming the patch or entry. A non-finite value in
-//! any product is an error naming the step ([`BakeError::Stage`]). A series
+//! any product is an error naming the step ([`BakeError::Numeric`]). A series
 //! that has not converged after [`MAX_DOUBLINGS`] doublings (2^40 bounces)
 //! is an error.
 //!
@@ -71,9 +71,9 @@
 //! products for `T_k`, an LU solve of `X (I − diag(ρ) F) = F` for `T_∞`
 //! (faer).
 
+use crate::bake::error::BakeError;
 use crate::bake::gemm::{DeviceMatrix, Gemm, GemmConfig, GemmRun};
 use crate::core::compute::Backend;
-use crate::core::error::BakeError;
 use faer::linalg::solvers::Solve as _;
 use serde::Serialize;
 use std::time::Instant;
@@ -338,23 +338,26 @@ pub fn expected_doublings(r: f64) -> u32 {
 /// `max_i ρ_i Σ_j F_ij` per channel.
 pub fn validate(f: &[f32], n: usize, albedo: &[[f32; 3]]) -> Result<[f64; 3], BakeError> {
     if f.len() != n * n {
-        return Err(BakeError::Options(format!(
-            "the form-factor matrix has {} entries, not n × n = {n} × {n}",
-            f.len()
-        )));
+        return Err(BakeError::Mismatch {
+            stage: "transfer",
+            detail: format!(
+                "the form-factor matrix has {} entries, not n × n = {n} × {n}",
+                f.len()
+            ),
+        });
     }
     if albedo.len() != n {
-        return Err(BakeError::Options(format!(
-            "{} albedos for {n} patches",
-            albedo.len()
-        )));
+        return Err(BakeError::Mismatch {
+            stage: "transfer",
+            detail: format!("{} albedos for {n} patches", albedo.len()),
+        });
     }
     for (i, a) in albedo.iter().enumerate() {
         for (c, &v) in a.iter().enumerate() {
             if !(0.0..1.0).contains(&v) {
-                return Err(BakeError::Stage {
+                return Err(BakeError::Numeric {
                     stage: STAGE,
-                    message: format!(
+                    detail: format!(
                         "patch {i} has albedo {v} in channel {}: albedos must lie in [0, 1) \
                          for the series of bounces to converge",
                         ["R", "G", "B"][c]
@@ -369,9 +372,9 @@ pub fn validate(f: &[f32], n: usize, albedo: &[[f32; 3]]) -> Result<[f64; 3], Ba
         let mut sum = 0.0f64;
         for (j, &v) in row.iter().enumerate() {
             if !(v >= 0.0) || !v.is_finite() {
-                return Err(BakeError::Stage {
+                return Err(BakeError::Numeric {
                     stage: STAGE,
-                    message: format!(
+                    detail: format!(
                         "input form factor F[{i}][{j}] = {v}: form factors must be finite and \
                          non-negative"
                     ),
@@ -412,9 +415,11 @@ pub fn transfer(
 ) -> Result<Transfer, BakeError> {
     let start = Instant::now();
     if let Bounces::K(0) = options.bounces {
-        return Err(BakeError::Options(
-            "bounces must be at least 1 (or infinite)".into(),
-        ));
+        return Err(BakeError::InvalidOption {
+            option: "bounces",
+            value: "0".into(),
+            expected: "at least 1, or infinite".into(),
+        });
     }
     let bounds = validate(f, n, albedo)?;
     let shared = shared_channels(albedo);
@@ -495,9 +500,9 @@ pub fn transfer(
                     progress(done, total);
                     let t32: Vec<f32> = t.iter().map(|&x| x as f32).collect();
                     if let Some(e) = t32.iter().position(|x| !x.is_finite()) {
-                        return Err(BakeError::Stage {
+                        return Err(BakeError::Numeric {
                             stage: STAGE,
-                            message: format!(
+                            detail: format!(
                                 "the f64 reference produced a non-finite value at T[{}][{}] (channel {})",
                                 e / n,
                                 e % n,
@@ -646,9 +651,9 @@ fn cl_channel(
         cs.seconds_gemm += run.seconds;
         cs.gflop += run.flops * 1e-9;
         if run.nonfinite() {
-            return Err(BakeError::Stage {
+            return Err(BakeError::Numeric {
                 stage: STAGE,
-                message: format!(
+                detail: format!(
                     "a non-finite value appeared in channel {name} at {what} (spectral bound \
                      max_i rho_i sum_j F_ij = {:.6}): the series diverges",
                     cs.spectral_bound
@@ -706,9 +711,9 @@ fn cl_channel(
         qm = out;
     }
     if options.bounces == Bounces::Infinite && !converged {
-        return Err(BakeError::Stage {
+        return Err(BakeError::Mismatch {
             stage: STAGE,
-            message: format!(
+            detail: format!(
                 "the infinite series did not converge in channel {name} after {MAX_DOUBLINGS} \
                  doublings (2^{MAX_DOUBLINGS} bounces; last term / sum = {:.3e}, spectral bound \
                  {:.6})",
@@ -740,9 +745,9 @@ fn cl_channel(
     let tp = g.download("T", mats[t].as_ref().expect("result present"))?;
     if let Some(e) = tp.iter().position(|x| !x.is_finite()) {
         // The products' epilogues catch this first; kept as a last guard.
-        return Err(BakeError::Stage {
+        return Err(BakeError::Numeric {
             stage: STAGE,
-            message: format!("non-finite T entry {e} in channel {name}"),
+            detail: format!("non-finite T entry {e} in channel {name}"),
         });
     }
     if !permuted {
@@ -771,7 +776,13 @@ pub fn reference(
     let fm = to_faer(f, n, f64::from);
     let par = faer::Par::rayon(0);
     let t = match bounces {
-        Bounces::K(0) => return Err(BakeError::Options("bounces must be at least 1".into())),
+        Bounces::K(0) => {
+            return Err(BakeError::InvalidOption {
+                option: "bounces",
+                value: "0".into(),
+                expected: "at least 1, or infinite".into(),
+            })
+        }
         Bounces::K(k) => {
             let q = faer::Mat::from_fn(n, n, |i, j| fm[(i, j)] * rho[j]);
             let mut t = fm.clone();

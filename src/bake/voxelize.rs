@@ -48,8 +48,8 @@
 //! Memory is proportional to the number of pieces (occupied voxels times
 //! triangles per voxel), never to the grid volume.
 
+use crate::bake::error::BakeError;
 use crate::core::compute::{round_up, Access, Backend, Gpu};
-use crate::core::error::BakeError;
 use crate::core::math::{cross, dot, sub};
 use crate::core::patch::{Direction, Grid, Patch};
 use crate::core::scene::Scene;
@@ -160,7 +160,11 @@ pub fn voxelize(
         Resolution::VoxelSize(size) => voxelize_at(scene, size, backend),
         Resolution::Patches(target) => {
             if target == 0 {
-                return Err(BakeError::Options("--patches must be at least 1".into()));
+                return Err(BakeError::InvalidOption {
+                    option: "patch count",
+                    value: "0".into(),
+                    expected: "at least 1".into(),
+                });
             }
             // A surface of area A gives about A / s² patches per side it is
             // seen from; start there and correct with the measured count,
@@ -404,9 +408,10 @@ pub fn cl_pieces(
 ) -> Result<(Vec<Piece>, f64), BakeError> {
     let n = coords.len();
     if n > u32::MAX as usize {
-        return Err(BakeError::Options(format!(
-            "{n} triangles exceed the 2^32 limit"
-        )));
+        return Err(BakeError::TooLarge {
+            stage: "voxelize",
+            detail: format!("{n} triangles exceed the 2^32 limit"),
+        });
     }
     let flat: Vec<f32> = coords.iter().flat_map(|c| c.map(|x| x as f32)).collect();
     let program = gpu.build("voxelize.cl", KERNEL_SOURCE, "")?;
@@ -523,9 +528,9 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
     let mut kept: Vec<(u64, Direction, u32, usize)> = Vec::with_capacity(pieces.len());
     for (i, p) in pieces.iter().enumerate() {
         if !p.area.is_finite() || !p.centroid.iter().all(|c| c.is_finite()) {
-            return Err(BakeError::Stage {
+            return Err(BakeError::Numeric {
                 stage: "voxelize",
-                message: format!(
+                detail: format!(
                     "non-finite piece of triangle {} in voxel {:?}: area {}, centroid {:?}",
                     p.tri, p.voxel, p.area, p.centroid
                 ),
@@ -618,9 +623,9 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         if !(len > 0.0) {
             // Pieces facing one direction cannot cancel (their normals'
             // `d` components are all positive); keep the invariant checked.
-            return Err(BakeError::Stage {
+            return Err(BakeError::Numeric {
                 stage: "voxelize",
-                message: format!("patch in voxel {voxel:?} facing {} has no area", dir.name()),
+                detail: format!("patch in voxel {voxel:?} facing {} has no area", dir.name()),
             });
         }
         let m = acc.area_normal.map(|c| c / len);

@@ -318,7 +318,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8], fail_after: Option<usize>) -> io:
                 f.write_all(&bytes[..k.min(bytes.len())])?;
                 return Err(io::Error::other("injected write failure (test)"));
             }
-            None => f.write_all(&bytes)?,
+            None => f.write_all(bytes)?,
         }
         f.sync_all()?;
         drop(f);

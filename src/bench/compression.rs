@@ -5,13 +5,13 @@
 
 use super::cpu_model;
 use crate::bake::encode::{self, measure, CodecError};
+use crate::bake::error::BakeError;
 use crate::bake::reorder::{self, ReorderMethod};
 use crate::bake::voxelize::Resolution;
 use crate::bake::{self, BakeConfig};
 use crate::bakefile::codec::{CodecKind, CodecSettingError, SparseValues, LOG_RANGE_AUTO};
 use crate::core::compute::{Backend, DeviceSelection, Gpu};
 use crate::core::direct;
-use crate::core::error::BakeError;
 use crate::core::patch::Patch;
 use crate::core::permutation::Permutation;
 use anyhow::Context as _;
@@ -52,19 +52,22 @@ impl CompressionOptions {
     /// Checks the option values that do not depend on a scene.
     pub fn validate(&self) -> Result<(), BakeError> {
         if self.methods.is_empty() {
-            return Err(BakeError::Options(
-                "the compression report needs at least one reordering".into(),
-            ));
+            return Err(BakeError::Mismatch {
+                stage: "compression report",
+                detail: "the compression report needs at least one reordering".into(),
+            });
         }
         if self.kinds.is_empty() {
-            return Err(BakeError::Options(
-                "the compression report needs at least one codec".into(),
-            ));
+            return Err(BakeError::Mismatch {
+                stage: "compression report",
+                detail: "the compression report needs at least one codec".into(),
+            });
         }
         if self.lights == 0 {
-            return Err(BakeError::Options(
-                "the compression report needs at least one light".into(),
-            ));
+            return Err(BakeError::Mismatch {
+                stage: "compression report",
+                detail: "the compression report needs at least one light".into(),
+            });
         }
         Ok(self.kinds.iter().try_for_each(CodecKind::validate)?)
     }
@@ -146,9 +149,11 @@ pub fn compression_report(
 ) -> anyhow::Result<String> {
     options.validate()?;
     if scenes.is_empty() {
-        return Err(
-            BakeError::Options("the compression report needs at least one scene".into()).into(),
-        );
+        return Err(BakeError::Mismatch {
+            stage: "compression report",
+            detail: "the compression report needs at least one scene".into(),
+        }
+        .into());
     }
     let gpu = Gpu::new(options.selection).context("opening the OpenCL device")?;
     let start = Instant::now();
@@ -286,7 +291,11 @@ fn compression_section(
     progress: &mut dyn FnMut(&str),
 ) -> anyhow::Result<String> {
     if patches == 0 {
-        return Err(BakeError::Options("the target patch count must be at least 1".into()).into());
+        return Err(BakeError::Mismatch {
+            stage: "compression report",
+            detail: "the target patch count must be at least 1".into(),
+        }
+        .into());
     }
     let backend = Backend::OpenCl(gpu);
     let config = BakeConfig::new(scene_path.to_path_buf(), Resolution::Patches(patches));

@@ -1,10 +1,10 @@
 //! `radiosity bench transfer`: the GEMM against faer, and the stress table
 //! of `T_∞` against the f64 reference over albedos and sizes.
 
+use crate::bake::error::BakeError;
 use crate::bake::gemm::{reference_product, relative_frobenius, to_faer, Gemm};
 use crate::bake::transfer::{reference, transfer, Bounces, TransferOptions};
 use crate::core::compute::Backend;
-use crate::core::error::BakeError;
 use crate::synthetic;
 use serde::Serialize;
 use std::fmt::Write as _;

@@ -1,6 +1,8 @@
-//! Typed library errors. Every variant carries the context a user needs to
-//! act on it (the file, the line, the value, the stage); the binary wraps
-//! them with `anyhow` and prints the whole chain.
+//! Typed errors of the core: scene loading, the OpenCL layer and the voxel
+//! grid. Every variant carries the context a user needs to act on it (the
+//! file, the line, the value); the binary wraps them with `anyhow` and
+//! prints the whole chain. The bake's errors are in `bake::error`, the bake
+//! file's in `bakefile`.
 
 use std::path::PathBuf;
 
@@ -58,32 +60,6 @@ pub enum ClError {
     },
     #[error("OpenCL call failed during {what}: {code}")]
     Api { what: String, code: String },
-}
-
-/// Errors from the bake stages.
-#[derive(Debug, thiserror::Error)]
-pub enum BakeError {
-    #[error("invalid bake option: {0}")]
-    Options(String),
-    #[error("stage {stage}: {message}")]
-    Stage {
-        stage: &'static str,
-        message: String,
-    },
-    #[error(transparent)]
-    Cl(#[from] ClError),
-    #[error(transparent)]
-    Grid(#[from] GridError),
-    #[error(transparent)]
-    Encode(#[from] crate::bake::encode::EncodeError),
-    #[error(transparent)]
-    Choose(#[from] crate::bake::encode::measure::ChooseError),
-    #[error(transparent)]
-    CodecSetting(#[from] crate::bakefile::codec::CodecSettingError),
-    #[error(transparent)]
-    CodecData(#[from] crate::bakefile::codec::CodecDataError),
-    #[error(transparent)]
-    Permutation(#[from] crate::core::permutation::PermutationError),
 }
 
 /// A voxel grid that cannot be built.

@@ -1,0 +1,64 @@
+//! The bake's typed errors. Each variant is a cause a caller can act on:
+//! an option out of its range (change the option), a request beyond a
+//! limit (fewer patches), inputs that do not fit together (a caller's bug),
+//! a non-finite or degenerate value (bad input data), an export that cannot
+//! be written, or an error of a layer below. Messages name options as the
+//! library knows them (`voxel size`), never command-line flags: the binary
+//! adds those.
+
+use crate::core::error::{ClError, GridError, SceneError};
+use std::path::PathBuf;
+
+/// Errors from the bake stages.
+#[derive(Debug, thiserror::Error)]
+pub enum BakeError {
+    /// An option value outside its valid range.
+    #[error("invalid {option}: {value} (expected {expected})")]
+    InvalidOption {
+        option: &'static str,
+        value: String,
+        expected: String,
+    },
+    /// A request beyond a limit of a stage (sizes, index ranges): fewer
+    /// patches or a coarser voxel size fits.
+    #[error("{stage}: {detail}")]
+    TooLarge { stage: &'static str, detail: String },
+    /// Inputs of a stage whose sizes or contents do not fit together.
+    #[error("{stage}: {detail}")]
+    Mismatch { stage: &'static str, detail: String },
+    /// A non-finite, negative or degenerate value where the mathematics
+    /// needs a valid one.
+    #[error("{stage}: {detail}")]
+    Numeric { stage: &'static str, detail: String },
+    /// An inspection file that cannot be written.
+    #[error("cannot write {path}: {detail}")]
+    Export { path: PathBuf, detail: String },
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Cl(#[from] ClError),
+    #[error(transparent)]
+    Grid(#[from] GridError),
+    #[error(transparent)]
+    Encode(#[from] crate::bake::encode::EncodeError),
+    #[error(transparent)]
+    Choose(#[from] crate::bake::encode::measure::ChooseError),
+    #[error(transparent)]
+    CodecSetting(#[from] crate::bakefile::codec::CodecSettingError),
+    #[error(transparent)]
+    CodecData(#[from] crate::bakefile::codec::CodecDataError),
+    #[error(transparent)]
+    Permutation(#[from] crate::core::permutation::PermutationError),
+    #[error(transparent)]
+    File(#[from] crate::bakefile::BakeFileError),
+}
+
+impl BakeError {
+    /// The option at fault, for [`BakeError::InvalidOption`].
+    pub fn option(&self) -> Option<&'static str> {
+        match self {
+            BakeError::InvalidOption { option, .. } => Some(option),
+            _ => None,
+        }
+    }
+}
