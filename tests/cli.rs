@@ -143,7 +143,10 @@ fn bake_reports_counts_and_exports_patches() {
     assert_eq!(shape, [n, 3]);
     let csv = std::fs::read_to_string(dir.join("patches.csv")).unwrap();
     let mut lines = csv.lines();
-    assert_eq!(lines.next().unwrap(), radiosity::bake::PATCHES_CSV_HEADER);
+    assert_eq!(
+        lines.next().unwrap(),
+        radiosity::bake::export::PATCHES_CSV_HEADER
+    );
     assert_eq!(lines.count() as u64, patches);
     // The preview: the red wall (x = 550) is on the camera's left, the green
     // one (x = 0) on its right.

@@ -10,261 +10,43 @@
 //! timings): the same scene and options give the same bytes. Timings go to
 //! the terminal report only.
 
+pub mod config;
 pub mod encode;
 pub mod error;
+pub mod export;
 pub mod form_factor;
 pub mod gemm;
 pub mod mesh_map;
 pub mod preview;
 pub mod reorder;
+pub mod report;
 pub mod transfer;
 pub mod voxelize;
 
-use crate::bake::error::BakeError;
+pub use config::{BakeConfig, CodecChoice, ComputeChoice, DEFAULT_ERROR_LIGHTS, ERROR_LIGHTS_SEED};
+pub use report::{BakeReport, CodecSummary, StageTime};
+
 use crate::bakefile::baked::stored_scene_path;
-use crate::bakefile::codec::{CodecKind, Encoded};
+use crate::bakefile::codec::Encoded;
 use crate::bakefile::records::{
     BakeInfo, BouncesRecord, OptionsRecord, INFO_RECORD_VERSION, OPTIONS_RECORD_VERSION,
 };
 use crate::bakefile::{self, BakeFile, PatchRecord, SceneHash};
 use crate::core::compute::Backend;
-use crate::core::compute::{DeviceSelection, Gpu};
+use crate::core::compute::Gpu;
 use crate::core::direct;
 use crate::core::npy;
 use crate::core::patch::Patch;
 use crate::core::permutation::Permutation;
-use crate::core::scene::{self, SceneSummary};
+use crate::core::scene::{self};
 use anyhow::Context as _;
-use form_factor::{FormFactorOptions, FormFactorStats, FormFactors};
-use mesh_map::MeshMapStats;
-use reorder::{ReorderMethod, ReorderStats};
-use serde::Serialize;
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use form_factor::FormFactors;
+use reorder::ReorderMethod;
+use report::{bar, spinner};
+use std::path::Path;
 use std::time::Instant;
-use transfer::{Bounces, Transfer, TransferOptions, TransferStats};
-use voxelize::{Resolution, VoxelStats};
-
-/// Where the bake's OpenCL stages run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub enum ComputeChoice {
-    /// An OpenCL device (the default).
-    OpenCl(DeviceSelection),
-    /// The CPU reference implementation of every stage (slow, exact).
-    CpuReference,
-}
-
-/// How the codec is chosen.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub enum CodecChoice {
-    /// This setting.
-    Fixed(CodecKind),
-    /// The cheapest of [`codec::default_candidates`] whose relative RMS
-    /// error of `H` over the error lights is at most this.
-    MaxError(f64),
-}
-
-impl Default for CodecChoice {
-    fn default() -> Self {
-        CodecChoice::Fixed(CodecKind::default())
-    }
-}
-
-/// Seed of the random lights the compression error is measured over (the
-/// same as the compression report's, `docs/compression.md`).
-pub const ERROR_LIGHTS_SEED: u64 = 1;
-
-/// Default number of those lights.
-pub const DEFAULT_ERROR_LIGHTS: usize = 64;
-
-/// The validated options of one bake.
-#[derive(Clone, Debug, Serialize)]
-pub struct BakeConfig {
-    pub scene: PathBuf,
-    pub resolution: Resolution,
-    pub compute: ComputeChoice,
-    pub form_factor: FormFactorOptions,
-    pub transfer: TransferOptions,
-    /// The reordering; `None`: [`ReorderMethod::default_for`] the patch count.
-    pub reorder: Option<ReorderMethod>,
-    pub codec: CodecChoice,
-    /// Seeded random lights the compression error is measured over (0: not
-    /// measured; `--max-error` needs at least 1).
-    pub error_lights: usize,
-    /// The bake file to write, if any.
-    #[serde(skip)]
-    pub output: Option<PathBuf>,
-    /// Directory for inspection files (`patches.csv`, `patches.png`,
-    /// `F.npy`, `T.npy`, `T_decoded.npy`, `albedo.npy`), if asked for.
-    #[serde(skip)]
-    pub export: Option<PathBuf>,
-}
-
-impl BakeConfig {
-    /// The default options for `scene` at `resolution`, on the default
-    /// OpenCL device, writing nothing.
-    pub fn new(scene: PathBuf, resolution: Resolution) -> BakeConfig {
-        BakeConfig {
-            scene,
-            resolution,
-            compute: ComputeChoice::OpenCl(DeviceSelection::default()),
-            form_factor: FormFactorOptions::default(),
-            transfer: TransferOptions::default(),
-            reorder: None,
-            codec: CodecChoice::default(),
-            error_lights: DEFAULT_ERROR_LIGHTS,
-            output: None,
-            export: None,
-        }
-    }
-
-    /// Checks option values that do not depend on the scene.
-    pub fn validate(&self) -> Result<(), BakeError> {
-        match self.resolution {
-            Resolution::VoxelSize(s) if !(s.is_finite() && s > 0.0) => {
-                return Err(BakeError::InvalidOption {
-                    option: "voxel size",
-                    value: s.to_string(),
-                    expected: "a positive finite number".into(),
-                })
-            }
-            Resolution::Patches(0) => {
-                return Err(BakeError::InvalidOption {
-                    option: "patch count",
-                    value: "0".into(),
-                    expected: "at least 1".into(),
-                })
-            }
-            _ => {}
-        }
-        match self.codec {
-            CodecChoice::Fixed(kind) => kind.validate()?,
-            CodecChoice::MaxError(e) if !(e.is_finite() && e >= 0.0) => {
-                return Err(BakeError::InvalidOption {
-                    option: "maximum codec error",
-                    value: e.to_string(),
-                    expected: "a finite number ≥ 0".into(),
-                })
-            }
-            CodecChoice::MaxError(_) if self.error_lights == 0 => {
-                return Err(BakeError::InvalidOption {
-                    option: "error lights",
-                    value: "0".into(),
-                    expected: "at least 1 when the codec is chosen by its error".into(),
-                })
-            }
-            CodecChoice::MaxError(_) => {}
-        }
-        Ok(())
-    }
-}
-
-/// Time and outcome of one stage.
-#[derive(Clone, Debug, Serialize)]
-pub struct StageTime {
-    pub stage: &'static str,
-    pub seconds: f64,
-}
-
-/// The compressed matrix of a bake: the setting, its sizes and its error.
-#[derive(Clone, Debug, Serialize)]
-pub struct CodecSummary {
-    /// The setting ([`CodecKind::name`]).
-    pub codec: String,
-    /// How it was chosen: `"fixed"` or `"max-error E"`.
-    pub chosen_by: String,
-    /// Bytes of the dense tiles, the sparse part and the tile index.
-    pub bytes_dense: u64,
-    pub bytes_sparse: u64,
-    pub bytes_index: u64,
-    /// All bytes per matrix entry (three channels together), and the dense
-    /// and sparse parts' shares.
-    pub bytes_per_entry: f64,
-    pub bytes_per_entry_dense: f64,
-    pub bytes_per_entry_sparse: f64,
-    /// Uncompressed f32 size of the three channels over the total.
-    pub compression_ratio: f64,
-    /// Tiles of the dense part that are zero in every channel, not stored.
-    pub zero_tile_fraction: f64,
-    /// Relative RMS error of `H = T̃ · B0` against `T · B0` over the error
-    /// lights (`None` when not measured).
-    pub h_error: Option<f64>,
-    pub error_lights: usize,
-    pub error_lights_seed: u64,
-}
-
-impl CodecSummary {
-    /// The summary of `e` (error measured elsewhere).
-    pub fn of(e: &Encoded, chosen_by: String, h_error: Option<f64>, lights: usize) -> CodecSummary {
-        let entries = (e.n * e.n).max(1) as f64;
-        CodecSummary {
-            codec: e.kind.name(),
-            chosen_by,
-            bytes_dense: e.bytes_dense() as u64,
-            bytes_sparse: e.bytes_sparse() as u64,
-            bytes_index: e.bytes_index() as u64,
-            bytes_per_entry: e.bytes_per_entry(),
-            bytes_per_entry_dense: e.bytes_dense() as f64 / entries,
-            bytes_per_entry_sparse: e.bytes_sparse() as f64 / entries,
-            compression_ratio: 12.0 * entries / e.bytes_total().max(1) as f64,
-            zero_tile_fraction: e.zero_tile_fraction(),
-            h_error,
-            error_lights: lights,
-            error_lights_seed: ERROR_LIGHTS_SEED,
-        }
-    }
-}
-
-impl std::fmt::Display for CodecSummary {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(f, "codec: {} ({})", self.codec, self.chosen_by)?;
-        writeln!(
-            f,
-            "  bytes per matrix entry: {:.4} dense + {:.4} sparse + {:.4} index = {:.4} \
-             ({} + {} + {} bytes; {:.1}x smaller than f32)",
-            self.bytes_per_entry_dense,
-            self.bytes_per_entry_sparse,
-            self.bytes_per_entry - self.bytes_per_entry_dense - self.bytes_per_entry_sparse,
-            self.bytes_per_entry,
-            self.bytes_dense,
-            self.bytes_sparse,
-            self.bytes_index,
-            self.compression_ratio
-        )?;
-        writeln!(
-            f,
-            "  zero tiles skipped: {:.1} %",
-            100.0 * self.zero_tile_fraction
-        )?;
-        match self.h_error {
-            Some(e) => write!(
-                f,
-                "  compression error: relative RMS error of H = T̃·B0 {:.3} % over {} seeded \
-                 random lights (seed {:#x})",
-                100.0 * e,
-                self.error_lights,
-                self.error_lights_seed
-            ),
-            None => write!(f, "  compression error: not measured (no error lights)"),
-        }
-    }
-}
-
-/// What a bake did, for the terminal and for `--json`.
-#[derive(Clone, Debug, Serialize)]
-pub struct BakeReport {
-    pub scene: SceneSummary,
-    pub device: String,
-    pub voxels: VoxelStats,
-    pub form_factors: FormFactorStats,
-    pub transfer: TransferStats,
-    pub reorder: ReorderStats,
-    pub codec: CodecSummary,
-    pub mesh_map: MeshMapStats,
-    /// The bake file written, if any.
-    pub output: Option<PathBuf>,
-    pub stages: Vec<StageTime>,
-}
+use transfer::{Bounces, Transfer};
+use voxelize::Resolution;
 
 /// The result of a bake.
 pub struct BakeOutput {
@@ -278,32 +60,6 @@ pub struct BakeOutput {
     /// The bake file (also written when `output` was given).
     pub file: BakeFile,
     pub report: BakeReport,
-}
-
-/// A progress bar on stderr for a stage measured in `unit`s (hidden when
-/// stderr is not a terminal).
-fn bar(stage: &str) -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{prefix:>14} [{bar:40}] {pos}/{len} ({eta} left)")
-            .expect("a valid template")
-            .progress_chars("=> "),
-    );
-    bar.set_prefix(stage.to_string());
-    bar
-}
-
-/// A spinner with the elapsed time for a stage that cannot count its work
-/// (hidden when stderr is not a terminal).
-fn spinner(stage: &str) -> indicatif::ProgressBar {
-    let sp = indicatif::ProgressBar::new_spinner();
-    sp.set_style(
-        indicatif::ProgressStyle::with_template("{prefix:>14} {spinner} {elapsed}")
-            .expect("a valid template"),
-    );
-    sp.set_prefix(stage.to_string());
-    sp.enable_steady_tick(std::time::Duration::from_millis(200));
-    sp
 }
 
 /// Runs the bake. `progress` receives one line per stage as it starts.
@@ -477,7 +233,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     if let Some(dir) = &config.export {
         progress(&format!("exporting to {}", dir.display()));
         let t = Instant::now();
-        export(
+        export::export(
             dir,
             &config.scene,
             scene.bounds(),
@@ -657,205 +413,4 @@ fn exact_h(t: [&[f32]; 3], n: usize, samples: &[[Vec<f32>; 3]]) -> Vec<[Vec<f64>
         .iter()
         .map(|b| std::array::from_fn(|c| encode::mat_vec(t[c], n, &b[c])))
         .collect()
-}
-
-/// Writes the inspection files: `patches.csv` and `patches.png` (the kept
-/// patches, in matrix order), `F.npy` (n × n), `T.npy` (3 × n × n,
-/// channel-major) and `albedo.npy` (n × 3). Refuses, before writing
-/// anything, when `T.npy` would exceed [`form_factor::NPY_MAX_BYTES`].
-#[allow(clippy::too_many_arguments)]
-fn export(
-    dir: &Path,
-    scene_path: &Path,
-    bounds: ([f32; 3], [f32; 3]),
-    patches: &[Patch],
-    ff: &FormFactors,
-    tr: &Transfer,
-    albedo: &[[f32; 3]],
-) -> anyhow::Result<()> {
-    let n = ff.n;
-    let t_bytes = 3 * (n as u64).pow(2) * 4;
-    if t_bytes > form_factor::NPY_MAX_BYTES {
-        anyhow::bail!(
-            "refusing to export T.npy: 3 × {n} × {n} float32 takes {t_bytes} bytes, above the \
-             {} byte export limit; use fewer patches or no --export",
-            form_factor::NPY_MAX_BYTES
-        );
-    }
-    export_patches(dir, patches)?;
-    let camera = scene_camera(scene_path, bounds)?;
-    let png = dir.join("patches.png");
-    crate::bake::preview::render_patches(patches, &camera, 800, 600)
-        .save(&png)
-        .with_context(|| format!("writing {}", png.display()))?;
-    form_factor::write_f_npy(&dir.join("F.npy"), ff)?;
-    let mut t = Vec::with_capacity(3 * n * n);
-    for c in 0..3 {
-        t.extend_from_slice(tr.channel(c));
-    }
-    let path = dir.join("T.npy");
-    npy::write_f32(&path, &[3, n, n], &t).with_context(|| format!("writing {}", path.display()))?;
-    let flat: Vec<f32> = albedo.iter().flatten().copied().collect();
-    let path = dir.join("albedo.npy");
-    npy::write_f32(&path, &[n, 3], &flat).with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
-}
-
-/// The camera of the scene's camera/lights file (`NAME.json` beside
-/// `NAME.obj`) if there is one, else a default view of the bounds. A file
-/// that exists but is invalid is an error.
-pub fn scene_camera(
-    scene: &Path,
-    bounds: ([f32; 3], [f32; 3]),
-) -> anyhow::Result<crate::core::scene_config::Camera> {
-    let json = scene.with_extension("json");
-    if json.exists() {
-        Ok(crate::core::scene_config::load(&json)?.camera)
-    } else {
-        Ok(crate::bake::preview::default_camera(bounds))
-    }
-}
-
-/// The header of `patches.csv` (one row per patch, in matrix order).
-pub const PATCHES_CSV_HEADER: &str =
-    "index,cx,cy,cz,nx,ny,nz,area,albedo_r,albedo_g,albedo_b,emission_r,emission_g,emission_b";
-
-/// Writes `dir/patches.csv`.
-pub fn export_patches(dir: &Path, patches: &[Patch]) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let path = dir.join("patches.csv");
-    let file =
-        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
-    let mut w = std::io::BufWriter::new(file);
-    let io = |e| anyhow::Error::from(e).context(format!("writing {}", path.display()));
-    writeln!(w, "{PATCHES_CSV_HEADER}").map_err(io)?;
-    for (i, p) in patches.iter().enumerate() {
-        let [cx, cy, cz] = p.centre;
-        let [nx, ny, nz] = p.normal;
-        let [ar, ag, ab] = p.albedo;
-        let [er, eg, eb] = p.emission;
-        writeln!(
-            w,
-            "{i},{cx},{cy},{cz},{nx},{ny},{nz},{},{ar},{ag},{ab},{er},{eg},{eb}",
-            p.area
-        )
-        .map_err(io)?;
-    }
-    w.flush().map_err(io)?;
-    Ok(())
-}
-
-impl std::fmt::Display for BakeReport {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let v = &self.voxels;
-        writeln!(f, "device: {}", self.device)?;
-        writeln!(
-            f,
-            "voxels: size {:.6}, grid {}x{}x{}, {} occupied, {} triangle/voxel pieces ({} candidates, {} slivers of total area {:.3e})",
-            v.voxel_size,
-            v.grid_dims[0],
-            v.grid_dims[1],
-            v.grid_dims[2],
-            v.occupied_voxels,
-            v.pieces,
-            v.candidate_pieces,
-            v.sliver_pieces,
-            v.sliver_area
-        )?;
-        let per_dir: Vec<String> = crate::core::patch::Direction::ALL
-            .iter()
-            .map(|d| format!("{} {}", d.name(), v.patches_per_direction[*d as usize]))
-            .collect();
-        writeln!(f, "patches: {} ({})", v.patches, per_dir.join(", "))?;
-        writeln!(
-            f,
-            "area: patches {:.6e} of scene {:.6e} ({:.2} %); {} staircase groups merged; {} groups facing into solid dropped (area {:.3e}: {}); {} albedo components clamped",
-            v.patch_area,
-            v.scene_area,
-            100.0 * v.patch_area / v.scene_area.max(f64::MIN_POSITIVE),
-            v.merged_groups,
-            v.covered_groups,
-            v.covered_area,
-            crate::core::patch::Direction::ALL
-                .iter()
-                .map(|d| format!("{} {:.3e}", d.name(), v.covered_area_per_direction[*d as usize]))
-                .collect::<Vec<_>>()
-                .join(", "),
-            v.clamped_albedo
-        )?;
-        if v.search.len() > 1 {
-            let tries: Vec<String> = v
-                .search
-                .iter()
-                .map(|(s, n)| format!("{s:.4} -> {n}"))
-                .collect();
-            writeln!(f, "voxel size search: {}", tries.join(", "))?;
-        }
-        writeln!(
-            f,
-            "voxelize detail: pieces {:.3} s (kernels {:.3} s), reduce {:.3} s",
-            v.seconds_pieces, v.seconds_kernels, v.seconds_reduce
-        )?;
-        writeln!(f, "{}", self.form_factors)?;
-        writeln!(f, "{}", self.transfer)?;
-        let r = &self.reorder;
-        writeln!(
-            f,
-            "reorder: {}, {:.3} s; mean distance between consecutive rows {:.4e} -> {:.4e}",
-            r.method, r.seconds, r.adjacent_distance_before, r.adjacent_distance_after
-        )?;
-        writeln!(f, "{}", self.codec)?;
-        let m = &self.mesh_map;
-        writeln!(
-            f,
-            "mesh map: {} vertices, {:.2} patches each on average; {} from a widened search, \
-             {} fallbacks ({} blocked by walls), {} unmapped; {:.3} s",
-            m.vertices,
-            m.mean_patches,
-            m.widened,
-            m.fallbacks,
-            m.fallbacks_blocked,
-            m.unmapped,
-            m.seconds
-        )?;
-        writeln!(f)?;
-        writeln!(f, "summary")?;
-        writeln!(
-            f,
-            "  n = {} patches, {} bounces, {} reordering, codec {}",
-            self.transfer.n, self.transfer.bounces, r.method, self.codec.codec
-        )?;
-        let total: f64 = self.stages.iter().map(|s| s.seconds).sum();
-        write!(f, "  time per stage:")?;
-        for s in &self.stages {
-            write!(f, " {} {:.2} s;", s.stage, s.seconds)?;
-        }
-        writeln!(f, " total {total:.2} s")?;
-        writeln!(
-            f,
-            "  bytes per matrix entry: dense {:.4}, sparse {:.4}, total {:.4} (all 3 channels, \
-             index included)",
-            self.codec.bytes_per_entry_dense,
-            self.codec.bytes_per_entry_sparse,
-            self.codec.bytes_per_entry
-        )?;
-        writeln!(
-            f,
-            "  tiles skipped: {:.1} %",
-            100.0 * self.codec.zero_tile_fraction
-        )?;
-        match self.codec.h_error {
-            Some(e) => writeln!(
-                f,
-                "  compression error: {:.3} % relative RMS of H over {} random lights",
-                100.0 * e,
-                self.codec.error_lights
-            )?,
-            None => writeln!(f, "  compression error: not measured")?,
-        }
-        match &self.output {
-            Some(p) => writeln!(f, "  wrote {}", p.display()),
-            None => writeln!(f, "  no bake file written (give -o OUT.rad)"),
-        }
-    }
 }

@@ -1,0 +1,126 @@
+//! The validated options of one bake ([`BakeConfig`]): what the binary's
+//! flags become, checked before any work starts.
+
+use super::error::BakeError;
+use super::form_factor::FormFactorOptions;
+use super::reorder::ReorderMethod;
+use super::transfer::TransferOptions;
+use super::voxelize::Resolution;
+use crate::bakefile::codec::CodecKind;
+use crate::core::compute::DeviceSelection;
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// Where the bake's OpenCL stages run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum ComputeChoice {
+    /// An OpenCL device (the default).
+    OpenCl(DeviceSelection),
+    /// The CPU reference implementation of every stage (slow, exact).
+    CpuReference,
+}
+
+/// How the codec is chosen.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub enum CodecChoice {
+    /// This setting.
+    Fixed(CodecKind),
+    /// The cheapest of [`codec::default_candidates`] whose relative RMS
+    /// error of `H` over the error lights is at most this.
+    MaxError(f64),
+}
+
+impl Default for CodecChoice {
+    fn default() -> Self {
+        CodecChoice::Fixed(CodecKind::default())
+    }
+}
+
+/// Seed of the random lights the compression error is measured over (the
+/// same as the compression report's, `docs/compression.md`).
+pub const ERROR_LIGHTS_SEED: u64 = 1;
+
+/// Default number of those lights.
+pub const DEFAULT_ERROR_LIGHTS: usize = 64;
+
+/// The validated options of one bake.
+#[derive(Clone, Debug, Serialize)]
+pub struct BakeConfig {
+    pub scene: PathBuf,
+    pub resolution: Resolution,
+    pub compute: ComputeChoice,
+    pub form_factor: FormFactorOptions,
+    pub transfer: TransferOptions,
+    /// The reordering; `None`: [`ReorderMethod::default_for`] the patch count.
+    pub reorder: Option<ReorderMethod>,
+    pub codec: CodecChoice,
+    /// Seeded random lights the compression error is measured over (0: not
+    /// measured; `--max-error` needs at least 1).
+    pub error_lights: usize,
+    /// The bake file to write, if any.
+    #[serde(skip)]
+    pub output: Option<PathBuf>,
+    /// Directory for inspection files (`patches.csv`, `patches.png`,
+    /// `F.npy`, `T.npy`, `T_decoded.npy`, `albedo.npy`), if asked for.
+    #[serde(skip)]
+    pub export: Option<PathBuf>,
+}
+
+impl BakeConfig {
+    /// The default options for `scene` at `resolution`, on the default
+    /// OpenCL device, writing nothing.
+    pub fn new(scene: PathBuf, resolution: Resolution) -> BakeConfig {
+        BakeConfig {
+            scene,
+            resolution,
+            compute: ComputeChoice::OpenCl(DeviceSelection::default()),
+            form_factor: FormFactorOptions::default(),
+            transfer: TransferOptions::default(),
+            reorder: None,
+            codec: CodecChoice::default(),
+            error_lights: DEFAULT_ERROR_LIGHTS,
+            output: None,
+            export: None,
+        }
+    }
+
+    /// Checks option values that do not depend on the scene.
+    pub fn validate(&self) -> Result<(), BakeError> {
+        match self.resolution {
+            Resolution::VoxelSize(s) if !(s.is_finite() && s > 0.0) => {
+                return Err(BakeError::InvalidOption {
+                    option: "voxel size",
+                    value: s.to_string(),
+                    expected: "a positive finite number".into(),
+                })
+            }
+            Resolution::Patches(0) => {
+                return Err(BakeError::InvalidOption {
+                    option: "patch count",
+                    value: "0".into(),
+                    expected: "at least 1".into(),
+                })
+            }
+            _ => {}
+        }
+        match self.codec {
+            CodecChoice::Fixed(kind) => kind.validate()?,
+            CodecChoice::MaxError(e) if !(e.is_finite() && e >= 0.0) => {
+                return Err(BakeError::InvalidOption {
+                    option: "maximum codec error",
+                    value: e.to_string(),
+                    expected: "a finite number ≥ 0".into(),
+                })
+            }
+            CodecChoice::MaxError(_) if self.error_lights == 0 => {
+                return Err(BakeError::InvalidOption {
+                    option: "error lights",
+                    value: "0".into(),
+                    expected: "at least 1 when the codec is chosen by its error".into(),
+                })
+            }
+            CodecChoice::MaxError(_) => {}
+        }
+        Ok(())
+    }
+}
