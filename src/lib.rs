@@ -4,42 +4,83 @@
 //! the 2017 thesis this project follows (see `../shared/DESIGN.md`, which fixes
 //! the mathematics and the names used in every module).
 //!
+//! ## The two phases and their contract
+//!
+//! ```text
+//!            bench ──────────────┐ (measures everything: may import all)
+//!              │                 │
+//!   bake ──────┼──► bakefile ◄───┼── runtime ◄── gl
+//!    │         │   (the file,    │     │          │
+//!    │         │    decode-only  │     │          │
+//!    │         │    codec)       │     │          │
+//!    └─────────┴───────┬─────────┴─────┴──────────┘
+//!                      ▼
+//!                    core  (scene, lights, patches, math, BVH, direct
+//!                           light, permutation, OpenCL layer, .npy)
+//! ```
+//!
+//! Which module may import which (`docs/architecture.md` has the same
+//! table with the reasons):
+//!
+//! | module | may import |
+//! |---|---|
+//! | [`core`] | nothing of this crate |
+//! | [`bakefile`] (the contract) | `core` |
+//! | [`bake`] | `core`, `bakefile` |
+//! | `runtime` (the CPU frame; to come) | `core`, `bakefile` |
+//! | `gl` (the renderer, one file per pass paired with `glsl/<pass>.*`; to come) | `core`, `bakefile`, `runtime` (its CPU references, in tests) |
+//! | [`bench`](mod@bench) | everything |
+//! | [`synthetic`], [`generate`] (fixtures and bundled scenes) | `core` |
+//!
+//! The run time never imports a bake stage and the bake never imports the
+//! run time: they meet only in the bake file ([`bakefile`]) and its
+//! decode-only codec ([`bakefile::codec`]). [`bakefile::baked::Baked`] is a
+//! bake as the run time sees it: the file read and validated once, the
+//! reordering applied once at load.
+//!
 //! ## Pipeline
 //!
-//! Bake (offline, OpenCL on any device; every kernel has a CPU reference):
-//! 1. [`scene`]: load OBJ + MTL (albedo = `Kd` × linear texture average,
-//!    emission = `Ke`), validate, repair what can be repaired and count it.
-//! 2. [`voxelize`]: voxel patches — one per occupied voxel and open axis
-//!    direction, in the mean plane of its geometry, with that geometry's
-//!    projected area (`kernels/voxelize.cl`).
-//! 3. [`form_factor`]: form factors `F` between patches with visibility
-//!    (`kernels/form_factor.cl`, a BVH of the original triangles, [`bvh`]).
-//! 4. [`transfer`]: the multi-bounce transfer `T_k = Σ_{h=1..k} F (diag(ρ)
-//!    F)^{h−1}` or `T_∞ = F (I − diag(ρ) F)^{−1}` per colour channel, from
-//!    a tiled OpenCL GEMM ([`gemm`], `kernels/gemm.cl`).
-//! 5. [`reorder`]: one symmetric permutation of rows and columns that makes
-//!    neighbouring rows alike (the thesis's greedy chain, or a Hilbert
+//! Bake (offline, OpenCL on any device; every kernel has a CPU reference),
+//! [`bake::run`]:
+//! 1. [`core::scene`]: load OBJ + MTL (albedo = `Kd` × linear texture
+//!    average, emission = `Ke`), validate, repair what can be repaired and
+//!    count it.
+//! 2. [`bake::voxelize`]: voxel patches ([`core::patch`]) — one per occupied
+//!    voxel and open axis direction, in the mean plane of its geometry, with
+//!    that geometry's projected area (`kernels/voxelize.cl`).
+//! 3. [`bake::form_factor`]: form factors `F` between patches with
+//!    visibility (`kernels/form_factor.cl`, a BVH of the original
+//!    triangles, [`core::bvh`]).
+//! 4. [`bake::transfer`]: the multi-bounce transfer `T_k = Σ_{h=1..k} F
+//!    (diag(ρ) F)^{h−1}` or `T_∞ = F (I − diag(ρ) F)^{−1}` per colour
+//!    channel, from a tiled OpenCL GEMM ([`bake::gemm`], `kernels/gemm.cl`).
+//! 5. [`bake::reorder`]: one symmetric permutation of rows and columns that
+//!    makes neighbouring rows alike (the thesis's greedy chain, or a Hilbert
 //!    curve).
-//! 6. [`codec`]: the compressed matrix — BC1 of log-scaled entries, an
-//!    exact sparse top fraction, all-zero tiles skipped (or BC4, BC6H, f16,
-//!    f32), with its error measured over seeded lights ([`direct`]).
-//! 7. [`mesh_map`]: per mesh vertex, up to four patches and weights, never
-//!    through a wall.
-//! 8. [`bakefile`]: the versioned, checksummed `.rad` file holding all of it.
+//! 6. [`bake::encode`]: the compressed matrix in the format of
+//!    [`bakefile::codec`] — BC1 of log-scaled entries, an exact sparse top
+//!    fraction, all-zero tiles skipped (or BC4, BC6H, f16, f32), with its
+//!    error measured over seeded lights ([`core::direct`]).
+//! 7. [`bake::mesh_map`]: per mesh vertex, up to four patches and weights,
+//!    never through a wall.
+//! 8. [`bakefile`]: the versioned, checksummed `.rad` file holding all of it
+//!    with its typed records ([`bakefile::records`]).
 //!
-//! Run time (OpenGL 4.3+): shadow maps → direct irradiance `D` on patches →
-//! `H = T · B0` with `B0 = ρ ∘ D + E` → transfer to the mesh → shading.
-//!
-//! Supporting modules: [`compute`] (the OpenCL layer), [`bake`] (the stages
-//! as one call with a report), [`generate`] (bundled scenes), [`scene_config`]
-//! (camera and lights files), [`bench`] (benchmarks), [`error`].
+//! Run time (the CPU frame in `runtime`, its GPU twin in `gl`): direct
+//! irradiance `D` on patches → `H = T̃ · B0` with `B0 = ρ ∘ D + E` straight
+//! from the compressed matrix → `H` at every pixel through the surface map
+//! → shading `L = ρ/π · (D + H) + Le`.
 //!
 //! ## Invariants
 //! - Every OpenCL kernel (`kernels/*.cl`, embedded with `include_str!`) has a
 //!   Rust CPU reference, and a test compares the two with a tolerance derived
-//!   from f32 rounding.
-//! - OpenCL code lives in [`compute`] and the stage modules' `cl_*`
-//!   functions; the bake never depends on the renderer.
+//!   from f32 rounding. Every GLSL shader (`glsl/`) will have one in
+//!   `runtime`.
+//! - OpenCL code lives in [`core::compute`] and the stage modules' `cl_*`
+//!   functions; GL code will live in `gl` only.
+//! - No import cycle between modules; types shared by several stages live in
+//!   [`core`] (the patch, its frame, the permutation), not in the first stage
+//!   that needed them.
 //! - Nothing is silently clamped or dropped: repairs, clamps, slivers and
 //!   covered geometry are counted and reported.
 //! - The bake is deterministic: the same input and options give the same
@@ -47,9 +88,12 @@
 //!   same `.rad` bytes (no times or dates in the file).
 //! - A `.rad` file is either rejected with an error naming the file and the
 //!   section, or fully valid: the container checks every checksum and
-//!   field, and the codec checks every index, offset and value before the
-//!   run time may read it.
-//! - Albedo components are below 1 ([`scene::ALBEDO_MAX`]), so the
+//!   field, the records their schema and version, and the codec every
+//!   index, offset and value before the run time may read it.
+//! - Library errors are typed ([`bake::error::BakeError`],
+//!   [`bakefile::BakeFileError`], [`bakefile::baked::LoadError`],
+//!   [`core::error`]) and name options and values, never command-line flags.
+//! - Albedo components are below 1 ([`core::scene::ALBEDO_MAX`]), so the
 //!   infinite-bounce series converges.
 //! - Memory is proportional to occupied voxels, never to the grid volume.
 

@@ -25,7 +25,7 @@ pub enum ComputeChoice {
 pub enum CodecChoice {
     /// This setting.
     Fixed(CodecKind),
-    /// The cheapest of [`codec::default_candidates`] whose relative RMS
+    /// The cheapest of `codec::default_candidates` whose relative RMS
     /// error of `H` over the error lights is at most this.
     MaxError(f64),
 }

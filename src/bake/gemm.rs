@@ -34,7 +34,7 @@
 //!   product under PoCL here (docs/transfer.md).
 //!
 //! The CPU reference is faer's matrix product ([`reference_product`], f64);
-//! [`bench_gemm`] measures GFLOP/s against faer's f32 product in the same
+//! `bench_gemm` measures GFLOP/s against faer's f32 product in the same
 //! run.
 
 use crate::bake::error::BakeError;

@@ -228,20 +228,7 @@ impl MeshMap {
     /// Interpolates per-patch values (in matrix order) at every vertex: the
     /// CPU reference of run-time step 4.
     pub fn interpolate(&self, values: &[[f32; 3]]) -> Vec<[f32; 3]> {
-        self.entries
-            .iter()
-            .map(|row| {
-                let mut h = [0.0f32; 3];
-                for &(p, w) in row {
-                    if w > 0.0 {
-                        for (c, hc) in h.iter_mut().enumerate() {
-                            *hc += w * values[p as usize][c];
-                        }
-                    }
-                }
-                h
-            })
-            .collect()
+        crate::bakefile::baked::interpolate(&self.entries, values)
     }
 }
 

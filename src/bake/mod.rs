@@ -78,7 +78,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         ComputeChoice::CpuReference => None,
     };
     let backend = backend_of(&gpu);
-    let device = device_name(&backend);
+    let device = backend.device_name();
     let TransferStages {
         scene,
         vox,
@@ -311,7 +311,7 @@ pub fn transfer_stages(
         seconds: t.elapsed().as_secs_f64(),
     });
 
-    progress(&format!("voxelizing on {}", device_name(backend)));
+    progress(&format!("voxelizing on {}", backend.device_name()));
     let t = Instant::now();
     let vox = voxelize::voxelize(&scene, config.resolution, backend)?;
     stages.push(StageTime {
@@ -377,19 +377,6 @@ pub fn transfer_stages(
         transfer: tr,
         stages,
     })
-}
-
-/// The device a backend runs on, for reports.
-fn device_name(backend: &Backend) -> String {
-    match backend {
-        Backend::OpenCl(g) => format!(
-            "{} ({}, {})",
-            g.info().name,
-            g.info().kind,
-            g.info().platform
-        ),
-        Backend::Cpu => "CPU reference (f64)".to_string(),
-    }
 }
 
 /// The backend of an optional device (`Backend` is not `Copy`).

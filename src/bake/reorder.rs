@@ -274,17 +274,7 @@ pub struct Features<'a> {
 
 impl<'a> Features<'a> {
     pub fn new(channels: &[&'a [f32]], n: usize) -> Features<'a> {
-        let inv_max = channels
-            .iter()
-            .map(|ch| {
-                let m = ch.par_iter().cloned().reduce(|| 0.0f32, f32::max);
-                if m > 0.0 {
-                    1.0 / m
-                } else {
-                    0.0
-                }
-            })
-            .collect();
+        let inv_max = crate::bakefile::codec::inverse_maxima(channels);
         Features {
             channels: channels.to_vec(),
             inv_max,

@@ -24,7 +24,7 @@ pub struct StageTime {
 /// The compressed matrix of a bake: the setting, its sizes and its error.
 #[derive(Clone, Debug, Serialize)]
 pub struct CodecSummary {
-    /// The setting ([`CodecKind::name`]).
+    /// The setting (`CodecKind::name`).
     pub codec: String,
     /// How it was chosen: `"fixed"` or `"max-error E"`.
     pub chosen_by: String,

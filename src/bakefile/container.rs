@@ -40,7 +40,7 @@ pub fn tag_name(t: [u8; 4]) -> String {
 }
 
 /// Errors of this module. Every message names the file (or
-/// `(in-memory bake file)` for [`parse`]) and the section or field at fault.
+/// `(in-memory bake file)` for `parse`) and the section or field at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum BakeFileError {
     #[error("cannot read bake file {path}: {source}")]
@@ -241,7 +241,7 @@ fn align_up(x: usize) -> usize {
 /// The container layer: lays out `sections` (tag, bytes) in the given order
 /// after the header and table, each at a multiple of [`ALIGN`] with zero
 /// padding, and fills in every checksum and the file length. Does not look
-/// at the contents; [`encode`] is the way to write a [`BakeFile`].
+/// at the contents; `encode` is the way to write a `BakeFile`.
 ///
 /// # Panics
 /// With more than [`MAX_SECTIONS`] sections.
@@ -358,7 +358,7 @@ pub fn le_u64(b: &[u8], at: usize) -> u64 {
     u64::from_le_bytes(a)
 }
 
-/// The container layer of [`parse`]: checks the header, the table and every
+/// The container layer of `parse`: checks the header, the table and every
 /// section checksum, and returns the sections in table order (unknown tags
 /// included). `file` names the input in messages.
 pub fn sections<'a>(bytes: &'a [u8], file: &str) -> Result<Vec<Section<'a>>, BakeFileError> {

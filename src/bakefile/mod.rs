@@ -16,7 +16,7 @@
 //! |      8 |        4 | format version `u32` (= [`FORMAT_VERSION`])             |
 //! |     12 |        4 | flags `u32`, 0 (none are defined in v2)                 |
 //! |     16 |        8 | file length in bytes `u64`                              |
-//! |     24 |        4 | section count `u32` (at most [`MAX_SECTIONS`])          |
+//! |     24 |        4 | section count `u32` (at most `MAX_SECTIONS`)          |
 //! |     28 |        4 | header checksum `u32` (see below)                       |
 //! |     32 | 24 × cnt | section table: per section `tag [u8; 4]`, `crc u32`, `offset u64`, `length u64` |
 //! |    ... |      ... | section bodies, each starting at a multiple of 8, gaps zero-filled |
@@ -79,7 +79,7 @@
 //! fixed section order, zero padding, no timestamps (a bake report that
 //! wants one puts it in `INFO` itself).
 //!
-//! **Atomic writes.** [`write`] writes a temporary file in the target's
+//! **Atomic writes.** [`write()`] writes a temporary file in the target's
 //! directory, flushes it to disk (`fsync`), then renames it over the target:
 //! a reader sees the old file or the new one, never a partial file, and a
 //! failed write leaves the old file untouched and removes the temporary.

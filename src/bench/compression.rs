@@ -123,7 +123,7 @@ pub const TARGET_H_ERROR: f64 = 0.02;
 /// voxelize at `patches` target patches → form factors → `T_∞` (all on
 /// OpenCL), the direct light of each seeded random light on the kept
 /// patches (CPU, with shadows) as the `B0` samples, then every reordering
-/// times every codec through [`codec::report_rows`], and a line naming the
+/// times every codec through `codec::report_rows`, and a line naming the
 /// best row under the target ([`TARGET_BYTES_PER_ENTRY`],
 /// [`TARGET_H_ERROR`]). `progress` gets one line per stage.
 pub fn compression(

@@ -1,7 +1,7 @@
 //! The encoder of the compressed transfer matrix (DESIGN.md section 2,
 //! "Compression"; bake step 6): the sparse top fraction, the log bytes, the
 //! block fitting ([`bc1`], [`bc4`]), the mass correction, and the error
-//! measures and codec choice ([`measure`]). The format it writes, and its
+//! measures and codec choice ([`measure`](mod@measure)). The format it writes, and its
 //! decoder, are the contract's ([`crate::bakefile::codec`], whose module
 //! doc describes every step).
 
@@ -167,17 +167,7 @@ fn select_top(channels: &[&[f32]], n: usize, count: usize) -> Vec<Vec<u32>> {
     if count == 0 || n == 0 {
         return vec![Vec::new(); n];
     }
-    let inv_max: Vec<f32> = channels
-        .iter()
-        .map(|ch| {
-            let m = ch.par_iter().cloned().reduce(|| 0.0f32, f32::max);
-            if m > 0.0 {
-                1.0 / m
-            } else {
-                0.0
-            }
-        })
-        .collect();
+    let inv_max = crate::bakefile::codec::inverse_maxima(channels);
     let key = |k: usize| sparse_key(channels, &inv_max, k);
     let histogram = |select: &(dyn Fn(u32) -> Option<usize> + Sync)| -> Vec<u64> {
         (0..n)

@@ -17,7 +17,7 @@ use serde::Serialize;
 ///
 /// - `CDSC`: `kind` is the dense format ([`DenseFormat::code`]: 1 BC1,
 ///   2 BC4, 3 BC6H, 4 F16, 5 F32), `n` the patch count, `tile_size` the
-///   tile edge [`TILE`].
+///   tile edge `TILE`.
 /// - `CPRM`: JSON `{"codec": NAME, "stats": {..}}`, NAME as
 ///   [`CodecKind::name`] writes it (read back with [`CodecKind::parse`]);
 ///   the encode statistics are informative (without the encode time, so

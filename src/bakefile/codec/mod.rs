@@ -53,7 +53,7 @@
 //!      more than transfer matrices need: the synthetic room's dense part
 //!      spans 5 e-folds). `L = 0` ([`LOG_RANGE_AUTO`], the default) takes
 //!      the smallest L that keeps all but the smallest 0.1 % of nonzero
-//!      dense entries ([`auto_log_range`]): every byte level is then as
+//!      dense entries (`auto_log_range`): every byte level is then as
 //!      fine as the data allow (6× finer than L = 25 on the room, and BC1's
 //!      5-bit endpoint grid with it), for the same bytes.
 //!   3. *BC1.* The bytes of the three channels are the R, G, B of the
@@ -137,12 +137,12 @@
 //!
 //! # Choosing a codec
 //!
-//! [`choose`] encodes every candidate, measures the relative RMS error of
-//! `H = T̃ · B0` over sample lights through the f64 gather ([`h_error`]: no
+//! `choose` encodes every candidate, measures the relative RMS error of
+//! `H = T̃ · B0` over sample lights through the f64 gather (`h_error`: no
 //! decoded n × n copy), and keeps the cheapest whose error is within the
-//! bound. [`measure`] adds the per-entry and Frobenius errors of a decoded
-//! matrix; [`report_rows`] and [`report_table`] tabulate errors, bytes and
-//! times for every reordering and codec. [`synthetic`] builds test
+//! bound. `measure` adds the per-entry and Frobenius errors of a decoded
+//! matrix; `report_rows` and `report_table` tabulate errors, bytes and
+//! times for every reordering and codec. `synthetic` builds test
 //! matrices with the structure of real ones.
 
 pub mod blob;
@@ -162,7 +162,7 @@ pub const MAX_TILE: usize = 1024;
 pub const DEFAULT_LOG_RANGE: f32 = 25.0;
 
 /// `log_range` value asking for the range to be chosen from the data
-/// ([`auto_log_range`]).
+/// (`auto_log_range`).
 pub const LOG_RANGE_AUTO: f32 = 0.0;
 
 /// The share of the smallest nonzero dense entries an automatic log range
@@ -244,7 +244,7 @@ pub enum CodecKind {
 
 impl Default for CodecKind {
     /// DESIGN.md's setting: BC1 + log + the top 4 % kept in the sparse
-    /// part, with the log range chosen from the data ([`auto_log_range`])
+    /// part, with the log range chosen from the data (`auto_log_range`)
     /// rather than the thesis's fixed L = 25, which costs accuracy at no
     /// saving, and the sparse values as shared-exponent RGB9E5 rather than
     /// f32 (4 bytes a position for three channels instead of 12): their
@@ -514,7 +514,7 @@ impl Sparse {
 /// Counts and time of one encoding: what was skipped, flushed or re-fitted.
 #[derive(Clone, Debug, Default, Serialize, serde::Deserialize)]
 pub struct EncodeStats {
-    /// Wall-clock seconds of [`encode`].
+    /// Wall-clock seconds of `encode`.
     pub seconds: f64,
     /// Whether the three channels were equal and stored once.
     pub grey: bool,
@@ -642,4 +642,22 @@ pub fn distinct_channels(t: [&[f32]; 3]) -> Vec<&[f32]> {
     } else {
         t.to_vec()
     }
+}
+
+/// `1 / max` of each channel (0 for an all-zero channel): the per-channel
+/// normalisation under which every channel counts alike (the sparse
+/// ranking, the reordering's row features).
+pub fn inverse_maxima(channels: &[&[f32]]) -> Vec<f32> {
+    use rayon::prelude::*;
+    channels
+        .iter()
+        .map(|ch| {
+            let m = ch.par_iter().cloned().reduce(|| 0.0f32, f32::max);
+            if m > 0.0 {
+                1.0 / m
+            } else {
+                0.0
+            }
+        })
+        .collect()
 }
