@@ -9,6 +9,7 @@ mod common;
 use proptest::prelude::*;
 use radiosity::bakefile::container::{encode_sections, header_checksum, ENTRY_LEN, HEADER_LEN};
 use radiosity::bakefile::hash::Fnv1a64;
+use radiosity::bakefile::surface::{PatchSamples, SurfaceMap};
 use radiosity::bakefile::{
     self, crc32, encode, parse, tag, BakeFile, BakeFileError, CodecBlob, Crc32, PatchRecord,
     SceneHash, FORMAT_VERSION,
@@ -17,7 +18,7 @@ use std::path::Path;
 
 /// A small valid bake file: 5 patches, 6 vertices.
 fn sample() -> BakeFile {
-    let patches = (0..5)
+    let patches: Vec<PatchRecord> = (0..5)
         .map(|i| {
             let f = i as f32;
             PatchRecord {
@@ -29,6 +30,7 @@ fn sample() -> BakeFile {
             }
         })
         .collect();
+    let centres: Vec<([f32; 3], [f32; 3])> = patches.iter().map(|p| (p.centre, p.normal)).collect();
     BakeFile {
         options_json: r#"{"voxel_size":0.25,"bounces":"inf"}"#.into(),
         scene_hash: SceneHash {
@@ -37,7 +39,6 @@ fn sample() -> BakeFile {
             mtl: 42,
             textures: 7,
         },
-        patches,
         permutation: vec![2, 0, 1, 4, 3],
         codec: CodecBlob {
             kind: 3,
@@ -58,6 +59,9 @@ fn sample() -> BakeFile {
             [(3, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)],
         ],
         info_json: r#"{"report":"test","seconds":1.5}"#.into(),
+        surface_map: SurfaceMap::without_geometry(5),
+        samples: PatchSamples::at_centres(&centres),
+        patches,
     }
 }
 
@@ -208,7 +212,10 @@ fn layout_matches_the_documented_header() {
         FORMAT_VERSION
     );
     assert_eq!(get_u64(&bytes, 16), bytes.len() as u64);
-    assert_eq!(u32::from_le_bytes(bytes[24..28].try_into().unwrap()), 12);
+    assert_eq!(
+        u32::from_le_bytes(bytes[24..28].try_into().unwrap()) as usize,
+        tag::REQUIRED.len()
+    );
     let secs = bakefile::sections(&bytes, "test").unwrap();
     assert_eq!(
         secs.iter().map(|s| s.tag).collect::<Vec<_>>(),
@@ -313,7 +320,7 @@ fn rejects_truncation_at_every_byte() {
                 if len == 0 {
                     assert!(detail.contains("empty"), "{detail}");
                 }
-                if len >= HEADER_LEN + 12 * ENTRY_LEN {
+                if len >= HEADER_LEN + tag::REQUIRED.len() * ENTRY_LEN {
                     assert!(
                         detail.contains(&format!(
                             "the header declares {} bytes, the file has {len}",
@@ -830,6 +837,9 @@ proptest! {
         let mut rng = Rng(seed | 1);
         let mut bf = sample();
         bf.patches.truncate(n);
+        bf.surface_map = SurfaceMap::without_geometry(n);
+        bf.samples.position.truncate(n * radiosity::bakefile::surface::SAMPLES_PER_PATCH);
+        bf.samples.normal.truncate(n * radiosity::bakefile::surface::SAMPLES_PER_PATCH);
         let mut perm: Vec<u32> = (0..n as u32).collect();
         for i in (1..n).rev() {
             perm.swap(i, rng.below(i + 1));

@@ -114,6 +114,7 @@ fn bake_reports_counts_and_exports_patches() {
             "reorder",
             "encode",
             "mesh map",
+            "surface map",
             "export"
         ]
     );

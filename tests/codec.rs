@@ -723,13 +723,18 @@ fn blobs_round_trip_every_variant() {
                 "{what}"
             );
             // Through the container.
+            let records: Vec<radiosity::bakefile::PatchRecord> = patches
+                .iter()
+                .map(radiosity::bakefile::PatchRecord::from)
+                .collect();
+            let centres: Vec<([f32; 3], [f32; 3])> =
+                records.iter().map(|p| (p.centre, p.normal)).collect();
             let bf = radiosity::bakefile::BakeFile {
                 options_json: "{}".into(),
                 info_json: "{}".into(),
-                patches: patches
-                    .iter()
-                    .map(radiosity::bakefile::PatchRecord::from)
-                    .collect(),
+                surface_map: radiosity::bakefile::surface::SurfaceMap::without_geometry(n),
+                samples: radiosity::bakefile::surface::PatchSamples::at_centres(&centres),
+                patches: records,
                 permutation: (0..n as u32).collect(),
                 codec: blob,
                 ..Default::default()

@@ -667,6 +667,7 @@ fn every_scene_is_valid() {
 
 fn sample_config() -> SceneConfig {
     SceneConfig {
+        emission: Default::default(),
         camera: Camera {
             position: [1.0, 2.0, 3.0],
             target: [0.0, 1.0, 0.0],

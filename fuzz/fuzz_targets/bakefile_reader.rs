@@ -29,6 +29,7 @@ use radiosity::bake::encode::encode as encode_matrix;
 use radiosity::bakefile::baked::Baked;
 use radiosity::bakefile::codec::{CodecKind, Encoded};
 use radiosity::bakefile::container::{header_checksum, ENTRY_LEN, HEADER_LEN};
+use radiosity::bakefile::surface::{PatchSamples, SurfaceMap};
 use radiosity::bakefile::records::{BakeInfo, BouncesRecord, OptionsRecord};
 use radiosity::bakefile::{self, crc32, encode, parse, BakeFile, PatchRecord, SceneHash};
 use std::sync::OnceLock;
@@ -80,6 +81,12 @@ fn base() -> &'static [u8] {
                     .unwrap()
                     .to_blob()
             },
+            surface_map: SurfaceMap::without_geometry(3),
+            samples: PatchSamples::at_centres(
+                &(0..3)
+                    .map(|i| ([i as f32, 0.0, 1.0], [0.0, 0.0, 1.0]))
+                    .collect::<Vec<_>>(),
+            ),
             mesh_map: vec![
                 [(0, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)],
                 [(1, 0.5), (2, 0.5), (0, 0.0), (0, 0.0)],
@@ -90,7 +97,7 @@ fn base() -> &'static [u8] {
                 record_version: 1,
                 generator: "fuzz".into(),
                 scene: "scene.obj".into(),
-                triangles: 2,
+                triangles: 0,
                 vertices: 4,
                 patches: 3,
                 grey: false,

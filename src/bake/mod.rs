@@ -20,6 +20,7 @@ pub mod mesh_map;
 pub mod preview;
 pub mod reorder;
 pub mod report;
+pub mod surface_map;
 pub mod transfer;
 pub mod voxelize;
 
@@ -172,6 +173,16 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         stage: "mesh map",
         seconds: t.elapsed().as_secs_f64(),
     });
+    progress("surface map and patch sample points");
+    let t = Instant::now();
+    let sp = spinner("surface map");
+    let (surface_map, samples, surface_stats) =
+        surface_map::build(&scene, &vox, &patch_index_of, n)?;
+    sp.finish_and_clear();
+    stages.push(StageTime {
+        stage: "surface map",
+        seconds: t.elapsed().as_secs_f64(),
+    });
 
     // Stage 8: the bake file.
     let options = OptionsRecord {
@@ -218,6 +229,8 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         permutation: perm.order.clone(),
         codec: encoded.to_blob(),
         mesh_map: map.entries.clone(),
+        surface_map,
+        samples,
         info_json: serde_json::to_string(&info).expect("info serializes"),
     };
     if let Some(out) = &config.output {
@@ -268,6 +281,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
             reorder: reorder_stats,
             codec: summary,
             mesh_map: map.stats,
+            surface_map: surface_stats,
             output: config.output.clone(),
             stages,
         },

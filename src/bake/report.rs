@@ -6,6 +6,7 @@ use super::config::ERROR_LIGHTS_SEED;
 use super::form_factor::FormFactorStats;
 use super::mesh_map::MeshMapStats;
 use super::reorder::ReorderStats;
+use super::surface_map::SurfaceMapStats;
 use super::transfer::TransferStats;
 use super::voxelize::VoxelStats;
 use crate::bakefile::codec::Encoded;
@@ -116,6 +117,7 @@ pub struct BakeReport {
     pub reorder: ReorderStats,
     pub codec: CodecSummary,
     pub mesh_map: MeshMapStats,
+    pub surface_map: SurfaceMapStats,
     /// The bake file written, if any.
     pub output: Option<PathBuf>,
     pub stages: Vec<StageTime>,
@@ -219,6 +221,25 @@ impl std::fmt::Display for BakeReport {
             m.fallbacks_blocked,
             m.unmapped,
             m.seconds
+        )?;
+        let s = &self.surface_map;
+        writeln!(
+            f,
+            "surface map: {} pieces of {} triangles: {} lit by their own patch, {} by a \
+             substitute ({:.4} units²), {} by none ({:.4} units²); {:.2} lattice neighbours \
+             per patch ({} candidates behind a surface); {} patches sampled at piece \
+             centroids; {:.3} s",
+            s.pieces,
+            s.triangles,
+            s.pieces_own,
+            s.pieces_substitute,
+            s.area_substitute,
+            s.pieces_unmapped,
+            s.area_unmapped,
+            s.mean_neighbours,
+            s.neighbours_blocked,
+            s.patches_centroid_samples,
+            s.seconds
         )?;
         writeln!(f)?;
         writeln!(f, "summary")?;

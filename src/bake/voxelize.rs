@@ -147,7 +147,20 @@ pub struct VoxelStats {
 pub struct Voxelization {
     pub grid: Grid,
     pub patches: Vec<Patch>,
+    /// Every piece above [`MIN_PIECE_AREA`], sorted by (triangle, voxel
+    /// key), with the patch it went into (an index into `patches`), or
+    /// `None` when its group was covered and dropped. The run time's
+    /// surface map and the patches' sample points are built from these.
+    pub pieces: Vec<OwnedPiece>,
     pub stats: VoxelStats,
+}
+
+/// A piece of a triangle in a voxel and the patch it belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OwnedPiece {
+    pub tri: u32,
+    pub voxel: [u32; 3],
+    pub patch: Option<u32>,
 }
 
 /// Voxelizes `scene` at the given resolution on `backend`.
@@ -283,9 +296,10 @@ fn clip_axis(src: &[[f64; 3]], k: usize, keep_high: bool) -> Vec<[f64; 3]> {
     out
 }
 
-/// Area and centroid of the part of the triangle inside the unit box, as
-/// `clip_piece` in the kernel (including the face-ownership rule).
-fn clip_piece(v: [[f64; 3]; 3], n: [f64; 3]) -> (f64, [f64; 3]) {
+/// The part of a triangle (coordinates relative to a voxel's minimum
+/// corner, in voxel units) inside the unit box: a convex polygon, empty
+/// when they do not overlap.
+pub fn clip_to_unit_box(v: [[f64; 3]; 3]) -> Vec<[f64; 3]> {
     let mut poly = v.to_vec();
     for k in 0..3 {
         if poly.is_empty() {
@@ -294,6 +308,24 @@ fn clip_piece(v: [[f64; 3]; 3], n: [f64; 3]) -> (f64, [f64; 3]) {
         poly = clip_axis(&poly, k, false);
         poly = clip_axis(&poly, k, true);
     }
+    poly
+}
+
+/// The world-space polygon of a triangle's piece in voxel `voxel`, from
+/// the triangle's grid coordinates ([`grid_coords`]).
+pub fn piece_polygon(grid: &Grid, coords: &[f64; 9], voxel: [u32; 3]) -> Vec<[f64; 3]> {
+    let local: [[f64; 3]; 3] =
+        std::array::from_fn(|i| std::array::from_fn(|q| coords[3 * i + q] - voxel[q] as f64));
+    clip_to_unit_box(local)
+        .into_iter()
+        .map(|p| std::array::from_fn(|q| grid.origin[q] + grid.size * (voxel[q] as f64 + p[q])))
+        .collect()
+}
+
+/// Area and centroid of the part of the triangle inside the unit box, as
+/// `clip_piece` in the kernel (including the face-ownership rule).
+fn clip_piece(v: [[f64; 3]; 3], n: [f64; 3]) -> (f64, [f64; 3]) {
+    let poly = clip_to_unit_box(v);
     if poly.len() < 3 {
         return (0.0, [0.0; 3]);
     }
@@ -511,6 +543,7 @@ impl Acc {
 /// the CPU and OpenCL paths; deterministic: pieces are sorted by (voxel,
 /// direction, triangle) before any sum.
 pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelization, BakeError> {
+    let pieces_in = pieces;
     let start = Instant::now();
     let s2 = grid.size * grid.size;
     let mut stats = VoxelStats {
@@ -586,6 +619,8 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
     // geometry facing `d`; stop at an open neighbour (a patch), at one facing
     // back (covered), or at one holding only perpendicular geometry (a patch).
     let mut targets: BTreeMap<(u64, Direction), ([u32; 3], Acc)> = BTreeMap::new();
+    // The target of each group (None: covered), in group order.
+    let mut group_target: Vec<Option<(u64, Direction)>> = Vec::with_capacity(groups.len());
     for ((key, dir), voxel, acc) in &groups {
         let mut at = *voxel;
         let mut covered = false;
@@ -604,9 +639,11 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
             stats.covered_groups += 1;
             stats.covered_area += acc.area;
             stats.covered_area_per_direction[*dir as usize] += acc.area;
+            group_target.push(None);
             continue;
         }
         let target = (grid.key(at), *dir);
+        group_target.push(Some(target));
         if target != (*key, *dir) {
             stats.merged_groups += 1;
         }
@@ -617,6 +654,27 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
             .add(acc);
     }
 
+    let patch_of: HashMap<(u64, Direction), u32> = targets
+        .keys()
+        .enumerate()
+        .map(|(i, k)| (*k, i as u32))
+        .collect();
+    // Pieces in group order (the order of `kept`), with their owner.
+    let mut pieces = Vec::with_capacity(kept.len());
+    let mut g = 0usize;
+    let mut current = None;
+    for &(key, dir, tri, i) in &kept {
+        if current.is_some() && current != Some((key, dir)) {
+            g += 1;
+        }
+        current = Some((key, dir));
+        pieces.push(OwnedPiece {
+            tri,
+            voxel: pieces_in[i].voxel,
+            patch: group_target[g].map(|k| patch_of[&k]),
+        });
+    }
+    pieces.sort_unstable_by_key(|p| (p.tri, grid.key(p.voxel)));
     let mut patches = Vec::with_capacity(targets.len());
     for ((_, dir), (voxel, acc)) in targets {
         let len = dot(acc.area_normal, acc.area_normal).sqrt();
@@ -659,6 +717,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
     Ok(Voxelization {
         grid,
         patches,
+        pieces,
         stats,
     })
 }

@@ -7,6 +7,7 @@
 
 use super::codec::{CodecDataError, Encoded};
 use super::records::{BakeInfo, OptionsRecord, INFO_RECORD_VERSION, OPTIONS_RECORD_VERSION};
+use super::surface::{PatchSamples, SurfaceMap};
 use super::{read, tag, tag_name, BakeFile, BakeFileError, SceneHash};
 use crate::core::patch::{Direction, Patch};
 use serde::Serialize;
@@ -63,6 +64,10 @@ pub struct Baked {
     pub order: Vec<u32>,
     /// Per mesh vertex, up to four (patch in matrix order, weight) pairs.
     pub mesh_map: Vec<[(u32, f32); 4]>,
+    /// The per-pixel surface map, patches in matrix order.
+    pub surface_map: SurfaceMap,
+    /// The patches' sample points, in matrix order.
+    pub samples: PatchSamples,
     pub options: OptionsRecord,
     pub info: BakeInfo,
     pub scene_hash: SceneHash,
@@ -157,8 +162,20 @@ impl Baked {
                 })
             })
             .collect();
+        if bf.surface_map.triangles() as u64 != info.triangles {
+            return Err(record(
+                tag::SURFACE_MAP,
+                format!(
+                    "maps {} triangles, the bake report says the scene has {}",
+                    bf.surface_map.triangles(),
+                    info.triangles
+                ),
+            ));
+        }
         Ok(Baked {
             file: name.to_string(),
+            surface_map: bf.surface_map.renumbered(&order, &new_of),
+            samples: bf.samples.reordered(&order),
             patches,
             matrix,
             order,

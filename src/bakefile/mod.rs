@@ -49,6 +49,8 @@
 //! | `TIDX` | the tile index (opaque)                                                   |
 //! | `SPRS` | the sparse correction (opaque)                                            |
 //! | `MMAP` | the mesh-to-patch map, per vertex 4 × (`u32` patch, `f32` weight)         |
+//! | `SMAP` | the per-pixel surface map ([`surface`] gives the layout)                  |
+//! | `PSMP` | the patches' sample points ([`surface`])                                  |
 //! | `INFO` | the bake report record [`records::BakeInfo`], JSON text                   |
 //!
 //! Sections are found through the table, never by position; the writer
@@ -89,6 +91,7 @@ pub mod codec;
 pub mod container;
 pub mod hash;
 pub mod records;
+pub mod surface;
 
 pub use container::{
     crc32, is_bake_file, sections, tag_name, BakeFileError, Crc32, Section, FORMAT_VERSION,
@@ -99,6 +102,7 @@ pub use hash::SceneHash;
 use container::{encode_sections, le_u32, write_atomic};
 use serde::Serialize;
 use std::path::Path;
+use surface::{PatchSamples, SurfaceMap};
 
 /// Bytes per patch record in `PTCH`: 13 `f32`.
 pub const PATCH_RECORD_LEN: usize = 52;
@@ -145,11 +149,15 @@ pub mod tag {
     pub const SPARSE: [u8; 4] = *b"SPRS";
     /// Mesh-to-patch map.
     pub const MESH_MAP: [u8; 4] = *b"MMAP";
+    /// The per-pixel surface map.
+    pub const SURFACE_MAP: [u8; 4] = *b"SMAP";
+    /// The patches' sample points.
+    pub const SAMPLES: [u8; 4] = *b"PSMP";
     /// Bake report, JSON.
     pub const INFO: [u8; 4] = *b"INFO";
 
     /// Every section of this format version, in the order the writer emits them.
-    pub const REQUIRED: [[u8; 4]; 12] = [
+    pub const REQUIRED: [[u8; 4]; 14] = [
         OPTIONS,
         SCENE_HASH,
         PATCHES,
@@ -161,6 +169,8 @@ pub mod tag {
         TILE_INDEX,
         SPARSE,
         MESH_MAP,
+        SURFACE_MAP,
+        SAMPLES,
         INFO,
     ];
 }
@@ -179,6 +189,8 @@ pub fn section_what(t: [u8; 4]) -> &'static str {
         tag::TILE_INDEX => "tile index",
         tag::SPARSE => "sparse correction",
         tag::MESH_MAP => "mesh-to-patch map",
+        tag::SURFACE_MAP => "surface map",
+        tag::SAMPLES => "patch sample points",
         tag::INFO => "bake report",
         _ => "unknown section",
     }
@@ -274,6 +286,10 @@ pub struct BakeFile {
     /// ([`crate::bake::mesh_map`]): weights ≥ 0 summing to 1, unused slots
     /// `(0, 0.0)`; a vertex no patch could light has four unused slots.
     pub mesh_map: Vec<[(u32, f32); 4]>,
+    /// The per-pixel surface map ([`surface`]), patch indices in file order.
+    pub surface_map: SurfaceMap,
+    /// The patches' sample points ([`surface`]), in file order.
+    pub samples: PatchSamples,
     /// Free-form bake report, JSON text.
     pub info_json: String,
 }
@@ -406,6 +422,12 @@ pub fn validate(bf: &BakeFile, file: &str) -> Result<(), BakeFileError> {
         ));
     }
 
+    bf.surface_map
+        .check(n)
+        .map_err(|d| invalid(file, tag::SURFACE_MAP, d))?;
+    bf.samples
+        .check(n, NORMAL_LENGTH_TOLERANCE)
+        .map_err(|d| invalid(file, tag::SAMPLES, d))?;
     for (v, row) in bf.mesh_map.iter().enumerate() {
         let mut sum = 0.0f64;
         for (s, &(p, w)) in row.iter().enumerate() {
@@ -485,7 +507,9 @@ fn encode_named(bf: &BakeFile, file: &str) -> Result<Vec<u8>, BakeFileError> {
         }
     }
     let hash = bf.scene_hash.to_bytes();
-    let sections: [([u8; 4], &[u8]); 12] = [
+    let smap = bf.surface_map.to_bytes();
+    let psmp = bf.samples.to_bytes();
+    let sections: [([u8; 4], &[u8]); 14] = [
         (tag::OPTIONS, bf.options_json.as_bytes()),
         (tag::SCENE_HASH, &hash),
         (tag::PATCHES, &patches),
@@ -497,6 +521,8 @@ fn encode_named(bf: &BakeFile, file: &str) -> Result<Vec<u8>, BakeFileError> {
         (tag::TILE_INDEX, &bf.codec.tile_index),
         (tag::SPARSE, &bf.codec.sparse),
         (tag::MESH_MAP, &map),
+        (tag::SURFACE_MAP, &smap),
+        (tag::SAMPLES, &psmp),
         (tag::INFO, bf.info_json.as_bytes()),
     ];
     debug_assert!(sections.iter().map(|s| s.0).eq(tag::REQUIRED));
@@ -605,6 +631,7 @@ pub fn parse_named(bytes: &[u8], file: &str) -> Result<BakeFile, BakeFileError> 
         .chunks_exact(PATCH_RECORD_LEN)
         .map(|r| PatchRecord::from_values(std::array::from_fn(|k| f32_at(r, 4 * k))))
         .collect();
+    let n = patches.len();
     let permutation: Vec<u32> = multiple(tag::PERMUTATION, 4, "u32 entries")?
         .chunks_exact(4)
         .map(|c| le_u32(c, 0))
@@ -639,6 +666,10 @@ pub fn parse_named(bytes: &[u8], file: &str) -> Result<BakeFile, BakeFileError> 
         patches,
         permutation,
         codec,
+        surface_map: SurfaceMap::from_bytes(get(tag::SURFACE_MAP)?, n)
+            .map_err(|d| invalid(file, tag::SURFACE_MAP, d))?,
+        samples: PatchSamples::from_bytes(get(tag::SAMPLES)?, n, NORMAL_LENGTH_TOLERANCE)
+            .map_err(|d| invalid(file, tag::SAMPLES, d))?,
         mesh_map,
         info_json,
     };

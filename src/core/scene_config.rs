@@ -15,6 +15,7 @@
 //! the light.
 
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
@@ -30,6 +31,10 @@ pub struct SceneConfig {
     pub units: String,
     /// A human-readable description of the scene and its lights.
     pub description: String,
+    /// Run-time scale of each emissive material's `Ke`, by material name
+    /// (0 switches it off); materials not listed keep scale 1.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub emission: BTreeMap<String, f32>,
 }
 
 /// A pinhole camera.
@@ -222,6 +227,15 @@ impl SceneConfig {
             ));
         }
         angle("camera.fov_y_deg".into(), c.fov_y_deg, 0.0, 180.0, false)?;
+        for (name, &s) in &self.emission {
+            if !(s.is_finite() && s >= 0.0) {
+                return Err(invalid(
+                    format!("emission.{name}"),
+                    s.to_string(),
+                    "an emission scale must be a finite number ≥ 0",
+                ));
+            }
+        }
         for (i, light) in self.lights.iter().enumerate() {
             let f = |name: &str| format!("lights[{i}].{name}");
             match light {

@@ -92,6 +92,7 @@ pub(super) fn parallel_squares() -> Result<GeneratedScene, usize> {
     b.set_material(r);
     b.plane_rect(1, 1.0, -1.0, (0.0, 1.0), (0.0, 1.0));
     let config = SceneConfig {
+        emission: Default::default(),
         camera: Camera {
             position: [0.5, 0.5, 3.0],
             target: [0.5, 0.5, 0.5],
@@ -124,6 +125,7 @@ pub(super) fn perpendicular_squares() -> Result<GeneratedScene, usize> {
     b.set_material(r);
     b.plane_rect(2, 0.0, 1.0, (0.0, 1.0), (0.0, 1.0));
     let config = SceneConfig {
+        emission: Default::default(),
         camera: Camera {
             position: [0.5, 1.6, 2.6],
             target: [0.5, 0.35, 0.35],
@@ -166,6 +168,7 @@ pub(super) fn coaxial_disks() -> Result<GeneratedScene, usize> {
     b.set_material(r);
     b.disk(DVec3::Y, DVec3::X, DVec3::Z, 1.0, DISK_SEGMENTS, -DVec3::Y);
     let config = SceneConfig {
+        emission: Default::default(),
         camera: Camera {
             position: [0.0, 0.5, 4.0],
             target: [0.0, 0.5, 0.0],
@@ -204,6 +207,7 @@ pub(super) fn closed_cube() -> Result<GeneratedScene, usize> {
         b.plane_rect(axis, 1.0, -1.0, lo, hi);
     }
     let config = SceneConfig {
+        emission: Default::default(),
         camera: Camera {
             position: [0.5, 0.5, 0.95],
             target: [0.5, 0.5, 0.0],

@@ -151,6 +151,7 @@ pub(super) fn build() -> Result<GeneratedScene, usize> {
     let area = 130.0 * 105.0;
     let intensity = LIGHT_KE.map(|e| (e as f64 * area / std::f64::consts::PI) as f32);
     let config = SceneConfig {
+        emission: Default::default(),
         camera: Camera {
             position: [278.0, 273.0, -800.0],
             target: [278.0, 273.0, -799.0],

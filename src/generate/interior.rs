@@ -1136,6 +1136,7 @@ pub(super) fn build() -> Result<GeneratedScene, usize> {
     s.exterior();
 
     let config = SceneConfig {
+        emission: Default::default(),
         camera: Camera {
             position: [9.0, 1.7, 7.3],
             target: [3.0, 2.8, 2.0],
