@@ -31,7 +31,8 @@
 //! Both are counted, with their area.
 
 use super::error::BakeError;
-use super::voxelize::{grid_coords, piece_polygon, Voxelization};
+use super::voxelize::{grid_coords, Voxelization};
+use crate::core::patch::piece_polygon;
 use crate::bakefile::surface::{
     offset_slot, MapPiece, PatchSamples, SurfaceMap, NONE, OFFSETS, PIECE_SUBSTITUTE,
     SAMPLES_PER_PATCH,

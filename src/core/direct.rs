@@ -7,15 +7,12 @@
 //! compression report measures `H = T̃ · B0` over.
 
 use crate::core::bvh::Bvh;
+use crate::core::light::incident;
 use crate::core::math::{add, dot, f64s, normalize, scale, sub, SplitMix64};
 use crate::core::patch::Patch;
 use crate::core::scene::Scene;
 use crate::core::scene_config::Light;
 use rayon::prelude::*;
-
-/// Shadow rays per patch and light: a 2 × 2 stratified grid over the
-/// patch's square, so partly shadowed patches get fractional light.
-pub const SHADOW_SAMPLES: usize = 4;
 
 /// Direct light on patches, with a BVH over the scene's triangles.
 pub struct DirectLight {
@@ -42,106 +39,66 @@ impl DirectLight {
         }
     }
 
-    fn visible(&self, from: [f64; 3], to: [f64; 3]) -> bool {
-        self.bvh
-            .any_hit(from, sub(to, from), |_, _| false)
-            .is_none()
-    }
-
-    /// Irradiance `D` (RGB) on every patch from `lights`.
+    /// Irradiance `D` (RGB) on every patch from `lights`, averaged over the
+    /// centres of the 2 × 2 quadrants of its square (for patches without
+    /// sample points; the run time uses [`DirectLight::at_points`] on the
+    /// patch's own sample points).
     pub fn irradiance(&self, patches: &[Patch], lights: &[Light]) -> Vec<[f64; 3]> {
         patches
             .par_iter()
             .map(|p| {
                 let frame = p.frame();
-                let n = frame.n;
-                // The centres of the square's 2 × 2 quadrants.
-                let points: Vec<[f64; 3]> = [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]
-                    .iter()
-                    .map(|&(a, b)| add(p.point(&frame, a, b), scale(n, self.offset)))
-                    .collect();
-                let mut d = [0.0; 3];
-                for light in lights {
-                    let mut e = [0.0; 3];
-                    for x in &points {
-                        let s = self.light_irradiance(light, *x, n);
-                        for c in 0..3 {
-                            e[c] += s[c] / SHADOW_SAMPLES as f64;
-                        }
-                    }
-                    for c in 0..3 {
-                        d[c] += e[c];
-                    }
-                }
-                d
+                let points: Vec<([f64; 3], [f64; 3])> =
+                    [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]
+                        .iter()
+                        .map(|&(a, b)| (p.point(&frame, a, b), frame.n))
+                        .collect();
+                self.at_points(&points, lights)
             })
             .collect()
     }
 
-    /// Irradiance at point `x` with normal `n` from one light, shadowed.
-    fn light_irradiance(&self, light: &Light, x: [f64; 3], n: [f64; 3]) -> [f64; 3] {
-        match light {
-            Light::Directional {
-                direction,
-                irradiance,
-            } => {
-                let to_light = normalize(f64s(*direction)).map(|c| -c);
-                let cos = dot(n, to_light);
-                if cos <= 0.0
-                    || !self.visible(x, std::array::from_fn(|k| x[k] + self.far * to_light[k]))
-                {
-                    return [0.0; 3];
+    /// The mean irradiance over `points` (position, unit normal) from
+    /// `lights`, each shadowed by the scene's triangles: a shadow ray from
+    /// each point, lifted [`DirectLight::offset`] along its normal, to
+    /// [`crate::core::light::Incident::shadow_end`] ([`crate::core::light`] defines each light).
+    pub fn at_points(&self, points: &[([f64; 3], [f64; 3])], lights: &[Light]) -> [f64; 3] {
+        let mut d = [0.0; 3];
+        for (x, n) in points {
+            let x = add(*x, scale(*n, self.offset));
+            for light in lights {
+                if let Some(inc) = incident(light, x, *n, self.far) {
+                    if self.visible(x, inc.shadow_end) {
+                        for c in 0..3 {
+                            d[c] += inc.irradiance[c];
+                        }
+                    }
                 }
-                f64s(*irradiance).map(|e| e * cos)
-            }
-            Light::Point {
-                position,
-                intensity,
-            } => self.point_irradiance(x, n, f64s(*position), f64s(*intensity), 1.0),
-            Light::Spot {
-                position,
-                direction,
-                intensity,
-                cone_angle_deg,
-                beam_angle_deg,
-            } => {
-                let pos = f64s(*position);
-                let axis = normalize(f64s(*direction));
-                let from_light = normalize(sub(x, pos));
-                let angle = dot(axis, from_light).clamp(-1.0, 1.0).acos().to_degrees();
-                let (cone, beam) = (*cone_angle_deg as f64, *beam_angle_deg as f64);
-                // Mitsuba 3's spot profile: 1 inside the beam, falling
-                // linearly in angle to 0 at the cone.
-                let profile = if angle <= beam {
-                    1.0
-                } else if angle < cone {
-                    (cone - angle) / (cone - beam)
-                } else {
-                    0.0
-                };
-                if profile <= 0.0 {
-                    return [0.0; 3];
-                }
-                self.point_irradiance(x, n, pos, f64s(*intensity), profile)
             }
         }
+        d.map(|v| v / points.len().max(1) as f64)
     }
 
-    fn point_irradiance(
-        &self,
-        x: [f64; 3],
-        n: [f64; 3],
-        pos: [f64; 3],
-        intensity: [f64; 3],
-        scale: f64,
-    ) -> [f64; 3] {
-        let l = sub(pos, x);
-        let r2 = dot(l, l);
-        let cos = dot(n, l) / r2.sqrt();
-        if cos <= 0.0 || r2 == 0.0 || !self.visible(x, pos) {
-            return [0.0; 3];
-        }
-        intensity.map(|i| scale * i * cos / r2)
+    /// The offset of shadow rays' origins along the normal (scene units).
+    pub fn offset(&self) -> f64 {
+        self.offset
+    }
+
+    /// Whether the segment `from → to` crosses no triangle.
+    pub fn visible(&self, from: [f64; 3], to: [f64; 3]) -> bool {
+        self.bvh
+            .any_hit(from, sub(to, from), |_, _| false)
+            .is_none()
+    }
+
+    /// The BVH of the scene's triangles (world coordinates, no shift).
+    pub fn bvh(&self) -> &Bvh {
+        &self.bvh
+    }
+
+    /// The length of shadow rays towards directional lights.
+    pub fn far(&self) -> f64 {
+        self.far
     }
 }
 

@@ -7,6 +7,7 @@ pub mod bvh;
 pub mod compute;
 pub mod direct;
 pub mod error;
+pub mod light;
 pub mod math;
 pub mod npy;
 pub mod patch;

@@ -212,3 +212,53 @@ impl Patch {
         std::array::from_fn(|k| self.centre[k] + frame.half * (a * frame.u[k] + b * frame.v[k]))
     }
 }
+
+/// Sutherland–Hodgman against `x_k ≥ 0` or `x_k ≤ 1` (the voxelization
+/// kernel's `clip_axis`, in f64).
+fn clip_axis(src: &[[f64; 3]], k: usize, keep_high: bool) -> Vec<[f64; 3]> {
+    let m = src.len();
+    let mut out = Vec::with_capacity(m + 1);
+    let dist = |p: &[f64; 3]| if keep_high { 1.0 - p[k] } else { p[k] };
+    for i in 0..m {
+        let p = (i + m - 1) % m;
+        let (dc, dp) = (dist(&src[i]), dist(&src[p]));
+        let (cin, pin) = (dc >= 0.0, dp >= 0.0);
+        if cin != pin {
+            let t = dp / (dp - dc);
+            let mut q: [f64; 3] = std::array::from_fn(|j| src[p][j] + t * (src[i][j] - src[p][j]));
+            q[k] = if keep_high { 1.0 } else { 0.0 };
+            out.push(q);
+        }
+        if cin {
+            out.push(src[i]);
+        }
+    }
+    out
+}
+
+/// The part of a triangle (coordinates relative to a voxel's minimum
+/// corner, in voxel units) inside the unit box: a convex polygon, empty
+/// when they do not overlap.
+pub fn clip_to_unit_box(v: [[f64; 3]; 3]) -> Vec<[f64; 3]> {
+    let mut poly = v.to_vec();
+    for k in 0..3 {
+        if poly.is_empty() {
+            break;
+        }
+        poly = clip_axis(&poly, k, false);
+        poly = clip_axis(&poly, k, true);
+    }
+    poly
+}
+
+
+/// The world-space polygon of a triangle's piece in voxel `voxel`, from
+/// the triangle's grid coordinates (`bake::voxelize::grid_coords`).
+pub fn piece_polygon(grid: &Grid, coords: &[f64; 9], voxel: [u32; 3]) -> Vec<[f64; 3]> {
+    let local: [[f64; 3]; 3] =
+        std::array::from_fn(|i| std::array::from_fn(|q| coords[3 * i + q] - voxel[q] as f64));
+    clip_to_unit_box(local)
+        .into_iter()
+        .map(|p| std::array::from_fn(|q| grid.origin[q] + grid.size * (voxel[q] as f64 + p[q])))
+        .collect()
+}
