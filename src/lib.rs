@@ -106,4 +106,5 @@ pub mod bakefile;
 pub mod bench;
 pub mod core;
 pub mod generate;
+pub mod runtime;
 pub mod synthetic;

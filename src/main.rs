@@ -17,6 +17,7 @@ use radiosity::bench::transfer::StressCase;
 use radiosity::core::compute::Backend;
 use radiosity::core::compute::Gpu;
 use radiosity::core::compute::{self, DeviceSelection};
+use radiosity::core::scene_config::SceneConfig;
 use radiosity::{bakefile, bench, core::scene, generate};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -53,6 +54,11 @@ enum Command {
     /// Bake a scene: voxelize, form factors, transfer matrix, reorder,
     /// compress, mesh-to-patch map, write the .rad file (-o), report.
     Bake(BakeArgs),
+    /// Render a view of a bake (or of a scene, baked first or taken from the
+    /// bake cache) on the CPU: direct light with shadows, indirect light
+    /// from the compressed matrix through the surface map, tone mapped to
+    /// an sRGB PNG (and optionally the linear radiance as PFM).
+    Render(RenderArgs),
     /// Write a bundled scene (OBJ + MTL + camera/lights JSON) into a directory.
     Generate {
         /// Scene name (see --list).
@@ -151,6 +157,47 @@ enum BenchCommand {
         #[command(flatten)]
         device: DeviceArgs,
     },
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// A bake file (.rad), or a scene (.obj) to bake first (or reuse from
+    /// the bake cache: $RADIOSITY_CACHE_DIR, else ~/.cache/radiosity).
+    input: PathBuf,
+    /// The PNG to write.
+    #[arg(short, long, value_name = "OUT.png")]
+    output: PathBuf,
+    /// What to show: final, direct, indirect or patches (radiances).
+    #[arg(long, default_value = "final")]
+    view: String,
+    /// The camera and lights (default: the scene's NAME.json beside it).
+    #[arg(long, value_name = "FILE.json")]
+    camera_lights: Option<PathBuf>,
+    /// The scene the bake was made from, for geometry and textures (default:
+    /// the one the bake file names, relative to the bake file).
+    #[arg(long, value_name = "SCENE.obj")]
+    scene: Option<PathBuf>,
+    #[arg(long, default_value_t = 640)]
+    width: usize,
+    #[arg(long, default_value_t = 480)]
+    height: usize,
+    /// cpu (the reference renderer); gl comes with the GL renderer.
+    #[arg(long, default_value = "cpu")]
+    backend: String,
+    /// Also write the view's linear radiance, before exposure, as PFM.
+    #[arg(long, value_name = "OUT.pfm")]
+    hdr: Option<PathBuf>,
+    /// Exposure (default: automatic, 0.18 over the log-average luminance).
+    #[arg(long)]
+    exposure: Option<f32>,
+    /// Sample points per patch for direct light (1..=16).
+    #[arg(long, default_value_t = radiosity::runtime::direct::DEFAULT_SAMPLES)]
+    samples: usize,
+    /// Target patch count when baking a scene.
+    #[arg(long, default_value_t = 2000)]
+    patches: usize,
+    #[command(flatten)]
+    device: DeviceArgs,
 }
 
 #[derive(Args, Clone)]
@@ -341,6 +388,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Devices { json } => devices(json),
         Command::Info { path, json } => info(&path, json),
         Command::Bake(args) => bake(args),
+        Command::Render(args) => render(args),
         Command::Generate { name, output, list } => generate(name, output, list),
         Command::Bench { which } => match which {
             BenchCommand::Voxelize {
@@ -440,6 +488,124 @@ fn bake(args: BakeArgs) -> anyhow::Result<()> {
         print!("{}", out.report.scene);
         print!("{}", out.report);
     }
+    Ok(())
+}
+
+/// The bake file for `input`: itself, or a bake of the scene (cached).
+fn bake_for(input: &Path, patches: usize, device: &DeviceArgs) -> anyhow::Result<PathBuf> {
+    let is_rad = input
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("rad"));
+    if is_rad || bakefile::is_bake_file(input) {
+        return Ok(input.to_path_buf());
+    }
+    let mut config = BakeConfig::new(input.to_path_buf(), Resolution::Patches(patches));
+    config.compute = ComputeChoice::OpenCl(DeviceSelection::from_flag_or_env(device.device)?);
+    config.validate().map_err(with_flag)?;
+    let (path, _) =
+        radiosity::bake::cache::bake_or_reuse(&config, &mut |l| eprintln!("[bake] {l}"))?;
+    Ok(path)
+}
+
+/// The camera/lights file: given, or the scene's `NAME.json`.
+fn camera_lights(given: Option<PathBuf>, scene: &Path) -> anyhow::Result<SceneConfig> {
+    let path = given.unwrap_or_else(|| scene.with_extension("json"));
+    radiosity::core::scene_config::load(&path).with_context(|| {
+        format!(
+            "reading the camera and lights {} (give another with --camera-lights)",
+            path.display()
+        )
+    })
+}
+
+/// `radiosity render`.
+fn render(args: RenderArgs) -> anyhow::Result<()> {
+    use radiosity::bakefile::baked::{resolve_scene_path, Baked};
+    use radiosity::runtime::render::{render, View};
+    use radiosity::runtime::texture::Albedo;
+    use radiosity::runtime::{Runtime, RuntimeOptions};
+    let view = View::parse(&args.view).with_context(|| {
+        format!(
+            "--view {:?}: expected final, direct, indirect or patches",
+            args.view
+        )
+    })?;
+    if args.backend != "cpu" {
+        bail!(
+            "--backend {:?}: this build renders on the CPU only (--backend cpu)",
+            args.backend
+        );
+    }
+    if !(1..=16).contains(&args.samples) {
+        bail!("--samples {}: expected 1..=16", args.samples);
+    }
+    if args.width == 0 || args.height == 0 || args.width * args.height > 1 << 26 {
+        bail!(
+            "--width {} --height {}: the image must have between 1 and 2^26 pixels",
+            args.width,
+            args.height
+        );
+    }
+    let rad = bake_for(&args.input, args.patches, &args.device)?;
+    let baked = Baked::load(&rad)?;
+    let scene_path = args
+        .scene
+        .clone()
+        .unwrap_or_else(|| resolve_scene_path(&rad, &baked.info.scene));
+    let scene = scene::load(&scene_path).with_context(|| {
+        format!(
+            "loading the scene {} (give it with --scene)",
+            scene_path.display()
+        )
+    })?;
+    let hash = bakefile::SceneHash::of_scene(&scene)?;
+    let diff = baked.scene_hash.differences(&hash);
+    if !diff.is_empty() {
+        bail!(
+            "{} was baked from a different scene than {} ({} changed): bake it again",
+            rad.display(),
+            scene_path.display(),
+            diff.join(", ")
+        );
+    }
+    let config = camera_lights(args.camera_lights.clone(), &scene_path)?;
+    let options = RuntimeOptions {
+        samples: args.samples,
+        ..RuntimeOptions::default()
+    };
+    let albedo = Albedo::new(&scene);
+    let mut rt = Runtime::new(baked, scene, options);
+    let fs = rt.frame(&config.lights, &config.emission);
+    let (img, rs) = render(&rt, &config, view, args.width, args.height, &albedo);
+    let (pixels, exposure) = img.to_srgb8(args.exposure);
+    let png = image::RgbImage::from_raw(args.width as u32, args.height as u32, pixels)
+        .context("image size")?;
+    let mut bytes = Vec::new();
+    png.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )?;
+    write_atomic(&args.output, &bytes, None)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    if let Some(hdr) = &args.hdr {
+        radiosity::runtime::tonemap::write_pfm(hdr, img.width, img.height, &img.radiance)
+            .with_context(|| format!("writing {}", hdr.display()))?;
+    }
+    eprintln!(
+        "frame: {} patches, direct {:.3} s, gather {:.3} s ({} bytes read, {:.1} % of column groups active); image {}×{} in {:.3} s ({} back-facing pixels, {} through a nearest piece, {} unmapped); exposure {exposure:.4}",
+        rt.n(),
+        fs.seconds_direct,
+        fs.seconds_gather,
+        fs.gather.bytes_read,
+        100.0 * fs.active_groups as f64 / fs.total_groups.max(1) as f64,
+        img.width,
+        img.height,
+        rs.seconds,
+        rs.back_faces,
+        rs.nearest_piece,
+        rs.unmapped
+    );
+    println!("{}", args.output.display());
     Ok(())
 }
 

@@ -84,6 +84,21 @@ impl BakeConfig {
         }
     }
 
+    /// The options that change a bake's content, as text (the bake cache's
+    /// key; not the device, the output or the exports).
+    pub fn cache_key(&self) -> String {
+        format!(
+            "v{} {:?} {:?} {:?} {:?} {:?} {}",
+            crate::bakefile::FORMAT_VERSION,
+            self.resolution,
+            self.form_factor,
+            self.transfer.bounces,
+            self.reorder,
+            self.codec,
+            self.error_lights
+        )
+    }
+
     /// Checks option values that do not depend on the scene.
     pub fn validate(&self) -> Result<(), BakeError> {
         match self.resolution {

@@ -10,6 +10,7 @@
 //! timings): the same scene and options give the same bytes. Timings go to
 //! the terminal report only.
 
+pub mod cache;
 pub mod config;
 pub mod encode;
 pub mod error;

@@ -32,13 +32,13 @@
 
 use super::error::BakeError;
 use super::voxelize::{grid_coords, Voxelization};
-use crate::core::patch::piece_polygon;
 use crate::bakefile::surface::{
     offset_slot, MapPiece, PatchSamples, SurfaceMap, NONE, OFFSETS, PIECE_SUBSTITUTE,
     SAMPLES_PER_PATCH,
 };
 use crate::core::bvh::Bvh;
 use crate::core::math::{add, cross, dot, norm, scale, sub};
+use crate::core::patch::piece_polygon;
 use crate::core::patch::{Direction, Grid};
 use crate::core::scene::Scene;
 use rayon::prelude::*;
@@ -77,6 +77,10 @@ pub struct SurfaceMapStats {
     pub neighbours_blocked: u64,
     pub seconds: f64,
 }
+
+/// A patch's sample points (position, unit normal) and whether the
+/// centroid fallback filled some.
+type Samples = (Vec<([f64; 3], [f64; 3])>, bool);
 
 /// One piece with its geometry.
 struct PieceGeo {
@@ -146,7 +150,7 @@ pub fn build(
     }
 
     // Sample points.
-    let per_patch: Vec<(Vec<([f64; 3], [f64; 3])>, bool)> = (0..n)
+    let per_patch: Vec<Samples> = (0..n)
         .into_par_iter()
         .map(|m| sample_patch(vox, vox_of[m], &by_patch[m], &geo))
         .collect();
@@ -277,6 +281,10 @@ pub fn build(
             .iter()
             .map(|&i| vox.patches[i].voxel.map(|c| c as u16))
             .collect(),
+        patch_direction: vox_of
+            .iter()
+            .map(|&i| vox.patches[i].direction as u8)
+            .collect(),
         neighbours,
     };
     map.check(n).map_err(|detail| BakeError::Mismatch {
@@ -315,12 +323,7 @@ fn in_grid(grid: &Grid, v: [i64; 3]) -> Option<[u32; 3]> {
 
 /// The sample points of one patch (module doc) and whether the centroid
 /// fallback was needed.
-fn sample_patch(
-    vox: &Voxelization,
-    i: usize,
-    pieces: &[usize],
-    geo: &[PieceGeo],
-) -> (Vec<([f64; 3], [f64; 3])>, bool) {
+fn sample_patch(vox: &Voxelization, i: usize, pieces: &[usize], geo: &[PieceGeo]) -> Samples {
     let patch = &vox.patches[i];
     let f = patch.frame();
     // Pieces projected onto the patch plane (2D, relative to the centre),
@@ -464,7 +467,7 @@ fn substitute(
     at_voxel: &HashMap<(u64, Direction), Vec<u32>>,
     vox_of: &[usize],
     vox: &Voxelization,
-    per_patch: &[(Vec<([f64; 3], [f64; 3])>, bool)],
+    per_patch: &[Samples],
     vis: &Visibility,
     voxel: [u32; 3],
     g: &PieceGeo,

@@ -273,7 +273,6 @@ fn tri_box_overlap(v: [[f64; 3]; 3], h: f64) -> bool {
     true
 }
 
-
 /// Area and centroid of the part of the triangle inside the unit box, as
 /// `clip_piece` in the kernel (including the face-ownership rule).
 fn clip_piece(v: [[f64; 3]; 3], n: [f64; 3]) -> (f64, [f64; 3]) {

@@ -34,8 +34,8 @@
 //! `SMAP`: a 48-byte header — grid origin `3 × f64`, voxel size `f64`,
 //! dims `3 × u32`, triangles `u32` — then `triangles + 1` piece starts
 //! (`u32`), the pieces (`m × 8` bytes: voxel `3 × u16`, flags `u16`, then
-//! `m × u32` patches, [`NONE`] for no patch), per patch its voxel (`n × 3 ×
-//! u16`, padded to 8 bytes per patch) and its neighbours (`n × 8 × u32`).
+//! `m × u32` patches, [`NONE`] for no patch), per patch its voxel and facing
+//! direction (`n × 4 × u16`) and its neighbours (`n × 8 × u32`).
 //! Patch indices are in the file's patch order, like the mesh map.
 //!
 //! `PSMP`: `n × SAMPLES_PER_PATCH` records of position `3 × f32` and unit
@@ -97,6 +97,9 @@ pub struct SurfaceMap {
     pub pieces: Vec<MapPiece>,
     /// Per patch: its voxel.
     pub patch_voxel: Vec<[u16; 3]>,
+    /// Per patch: its facing direction (`Direction as u8`: +x, −x, +y, −y,
+    /// +z, −z); its axis is `direction / 2`.
+    pub patch_direction: Vec<u8>,
     /// Per patch: its neighbours in [`OFFSETS`] order, [`NONE`] when absent.
     pub neighbours: Vec<[u32; 8]>,
 }
@@ -134,6 +137,7 @@ impl SurfaceMap {
             tri_start: vec![0],
             pieces: Vec::new(),
             patch_voxel: vec![[0; 3]; n],
+            patch_direction: vec![0; n],
             neighbours: vec![[NONE; 8]; n],
         }
     }
@@ -173,11 +177,11 @@ impl SurfaceMap {
         for p in &self.pieces {
             out.extend_from_slice(&p.patch.to_le_bytes());
         }
-        for v in &self.patch_voxel {
+        for (v, d) in self.patch_voxel.iter().zip(&self.patch_direction) {
             for c in v {
                 out.extend_from_slice(&c.to_le_bytes());
             }
-            out.extend_from_slice(&0u16.to_le_bytes());
+            out.extend_from_slice(&(*d as u16).to_le_bytes());
         }
         for nb in &self.neighbours {
             for x in nb {
@@ -247,6 +251,16 @@ impl SurfaceMap {
                 ]
             })
             .collect();
+        let mut patch_direction = Vec::with_capacity(n);
+        for k in 0..n {
+            let d = u16_at(vv, 4 * k + 3);
+            if d > 5 {
+                return Err(format!(
+                    "patch {k}: facing direction {d} is not one of 0..6"
+                ));
+            }
+            patch_direction.push(d as u8);
+        }
         let nb = take(n * 32, "neighbours")?;
         let neighbours = (0..n)
             .map(|k| std::array::from_fn(|s| u32_at(nb, 8 * k + s)))
@@ -261,6 +275,7 @@ impl SurfaceMap {
             tri_start,
             pieces,
             patch_voxel,
+            patch_direction,
             neighbours,
         };
         map.check(n)?;
@@ -311,6 +326,12 @@ impl SurfaceMap {
                 }
             }
         }
+        if self.patch_direction.len() != n || self.patch_direction.iter().any(|&d| d > 5) {
+            return Err(format!(
+                "{} patch directions for {n} patches, or one outside 0..6",
+                self.patch_direction.len()
+            ));
+        }
         if self.patch_voxel.len() != n || self.neighbours.len() != n {
             return Err(format!(
                 "{} patch voxels and {} neighbour lists for {n} patches",
@@ -348,6 +369,10 @@ impl SurfaceMap {
             patch_voxel: order
                 .iter()
                 .map(|&o| self.patch_voxel[o as usize])
+                .collect(),
+            patch_direction: order
+                .iter()
+                .map(|&o| self.patch_direction[o as usize])
                 .collect(),
             neighbours: order
                 .iter()

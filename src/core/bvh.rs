@@ -470,6 +470,65 @@ impl Bvh {
     }
 }
 
+impl Bvh {
+    /// The nearest triangle crossing the segment `o + t d`, `t ∈ (0, 1]`:
+    /// its leaf-order index and `t`; `None` when none does. Children are
+    /// visited nearer first and a subtree is skipped once its box lies
+    /// beyond the nearest hit so far (the run time's primary rays).
+    pub fn closest_hit(&self, o: [f64; 3], d: [f64; 3]) -> Option<(u32, f64)> {
+        if self.tris.is_empty() {
+            return None;
+        }
+        let inv = d.map(|x| 1.0 / x);
+        let mut best: Option<(u32, f64)> = None;
+        let mut stack = [(0u32, 0.0f64); STACK];
+        let mut sp = 0usize;
+        let t0 = slab(&self.nodes[0], o, inv)?;
+        stack[0] = (0, t0);
+        sp += 1;
+        while sp > 0 {
+            sp -= 1;
+            let (node, entry) = stack[sp];
+            if best.is_some_and(|(_, bt)| entry > bt) {
+                continue;
+            }
+            let n = &self.nodes[node as usize];
+            if n.count > 0 {
+                for k in n.left..n.left + n.count {
+                    if let Some(t) = intersect(&self.tris[k as usize], o, d) {
+                        if t > 0.0 && best.is_none_or(|(_, bt)| t < bt) {
+                            best = Some((k, t));
+                        }
+                    }
+                }
+                continue;
+            }
+            let (a, b) = (n.left, n.left + 1);
+            let ta = slab(&self.nodes[a as usize], o, inv);
+            let tb = slab(&self.nodes[b as usize], o, inv);
+            // Push the farther first so the nearer is popped first.
+            let mut push = |c: u32, t: Option<f64>| {
+                if let Some(t) = t {
+                    assert!(sp < STACK, "BVH traversal stack overflow");
+                    stack[sp] = (c, t);
+                    sp += 1;
+                }
+            };
+            match (ta, tb) {
+                (Some(x), Some(y)) if y < x => {
+                    push(a, ta);
+                    push(b, tb);
+                }
+                _ => {
+                    push(b, tb);
+                    push(a, ta);
+                }
+            }
+        }
+        best
+    }
+}
+
 /// Object-median split along `axis`: index of the first right element.
 fn median(slice: &mut [u32], centroids: &[[f32; 3]], axis: usize) -> usize {
     let mid = slice.len() / 2;

@@ -69,8 +69,8 @@ impl DirectLight {
             for light in lights {
                 if let Some(inc) = incident(light, x, *n, self.far) {
                     if self.visible(x, inc.shadow_end) {
-                        for c in 0..3 {
-                            d[c] += inc.irradiance[c];
+                        for (dc, e) in d.iter_mut().zip(inc.irradiance) {
+                            *dc += e;
                         }
                     }
                 }

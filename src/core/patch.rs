@@ -251,7 +251,6 @@ pub fn clip_to_unit_box(v: [[f64; 3]; 3]) -> Vec<[f64; 3]> {
     poly
 }
 
-
 /// The world-space polygon of a triangle's piece in voxel `voxel`, from
 /// the triangle's grid coordinates (`bake::voxelize::grid_coords`).
 pub fn piece_polygon(grid: &Grid, coords: &[f64; 9], voxel: [u32; 3]) -> Vec<[f64; 3]> {

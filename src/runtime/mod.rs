@@ -1,0 +1,281 @@
+//! The run time on the CPU: a baked scene lit by lights that move, with
+//! indirect light that follows (DESIGN.md, run time). It is the reference
+//! the GL renderer is tested against and the fallback where GL is too slow.
+//! It imports the core and the bake file's contract, never a bake stage.
+//!
+//! Per frame ([`Runtime::frame`]):
+//! 1. direct irradiance `D` on every patch from its sample points, with
+//!    shadows ([`direct`]);
+//! 2. `B0 = ρ ∘ D + E`, `E` with each emissive material's run-time scale
+//!    ([`emission`]);
+//! 3. `H = T̃ · B0` straight from the compressed matrix ([`gather`]).
+//!
+//! **What a frame skips.** The products are kept per light and for the
+//! emission: `H = T̃ E + Σ_l T̃ (ρ ∘ D_l)`, each term the gather of its own
+//! `B0` over that term's non-zero columns only. A frame recomputes the
+//! terms whose light (or emission scales) changed — so moving one spot
+//! light costs one direct pass for that light and one gather over the
+//! columns it lights — and sums; when nothing changed, nothing is
+//! computed. Every term is a fresh product, never an accumulation of
+//! differences, so there is no drift over many frames: after any sequence
+//! of changes `H` equals a full gather of the total `B0` up to the f32
+//! rounding of the sum of terms.
+//!
+//! Evaluating `H` at pixels ([`surface`]) and shading them ([`render`],
+//! [`tonemap`]) complete the frame.
+
+pub mod direct;
+pub mod emission;
+pub mod gather;
+pub mod render;
+pub mod surface;
+pub mod texture;
+pub mod tonemap;
+
+use crate::bakefile::baked::Baked;
+use crate::core::direct::DirectLight;
+use crate::core::scene::Scene;
+use crate::core::scene_config::Light;
+use emission::Emission;
+use gather::{ActiveColumns, CompressedGather, GatherStats};
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// Options of the CPU run time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RuntimeOptions {
+    /// Sample points per patch for direct light (1..=16).
+    pub samples: usize,
+    /// Skip zero columns of `B0` (off only to measure what it saves: the
+    /// result is the same bit for bit).
+    pub skip_columns: bool,
+    /// Reuse the products of unchanged lights and frames (off: every frame
+    /// recomputes everything).
+    pub cache: bool,
+    /// Use the AVX-512 gather where the CPU has it.
+    pub simd: bool,
+}
+
+impl Default for RuntimeOptions {
+    fn default() -> Self {
+        RuntimeOptions {
+            samples: direct::DEFAULT_SAMPLES,
+            skip_columns: true,
+            cache: true,
+            simd: true,
+        }
+    }
+}
+
+/// Times and counts of one frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    /// Seconds of direct light, gathers, and the sum of terms.
+    pub seconds_direct: f64,
+    pub seconds_gather: f64,
+    pub seconds_total: f64,
+    /// Terms (lights, emission) recomputed, and reused.
+    pub terms_computed: usize,
+    pub terms_reused: usize,
+    /// Nothing changed since the last frame: nothing was computed.
+    pub unchanged: bool,
+    /// Summed over the gathers of this frame.
+    pub gather: GatherStats,
+    /// Column groups active in the gathers of this frame, and their total.
+    pub active_groups: usize,
+    pub total_groups: usize,
+}
+
+/// One cached term of `H`.
+#[derive(Clone, Debug)]
+struct Term {
+    light: Option<Light>,
+    /// `D` of this light (zero for the emission term).
+    d: [Vec<f32>; 3],
+    b0: [Vec<f32>; 3],
+    h: [Vec<f32>; 3],
+}
+
+/// A baked scene ready to be lit.
+pub struct Runtime {
+    pub baked: Baked,
+    pub scene: Scene,
+    pub direct: DirectLight,
+    pub gather: CompressedGather,
+    pub emission: Emission,
+    pub options: RuntimeOptions,
+    terms: Vec<Term>,
+    emission_term: Option<(BTreeMap<String, f32>, Term)>,
+    d: [Vec<f32>; 3],
+    b0: [Vec<f32>; 3],
+    h: [Vec<f32>; 3],
+    frames: u64,
+}
+
+impl Runtime {
+    /// Prepares `baked` (from `scene`) for frames.
+    pub fn new(baked: Baked, scene: Scene, options: RuntimeOptions) -> Runtime {
+        let n = baked.patches.len();
+        let gather = CompressedGather::new(&baked.matrix, options.simd);
+        let emission = Emission::new(&baked, &scene);
+        Runtime {
+            direct: DirectLight::new(&scene),
+            gather,
+            emission,
+            options,
+            terms: Vec::new(),
+            emission_term: None,
+            d: std::array::from_fn(|_| vec![0.0; n]),
+            b0: std::array::from_fn(|_| vec![0.0; n]),
+            h: std::array::from_fn(|_| vec![0.0; n]),
+            frames: 0,
+            baked,
+            scene,
+        }
+    }
+
+    /// Patches.
+    pub fn n(&self) -> usize {
+        self.baked.patches.len()
+    }
+
+    /// `D` on the patches after the last frame (matrix order).
+    pub fn d(&self) -> &[Vec<f32>; 3] {
+        &self.d
+    }
+
+    /// `B0 = ρ ∘ D + E` of the last frame.
+    pub fn b0(&self) -> &[Vec<f32>; 3] {
+        &self.b0
+    }
+
+    /// `H = T̃ · B0` of the last frame.
+    pub fn h(&self) -> &[Vec<f32>; 3] {
+        &self.h
+    }
+
+    /// One product `T̃ · b0` over `b0`'s active columns (all columns when
+    /// column skipping is off).
+    pub fn product(&self, b0: &[Vec<f32>; 3]) -> ([Vec<f32>; 3], GatherStats, usize) {
+        let refs = [&b0[0][..], &b0[1][..], &b0[2][..]];
+        let active = ActiveColumns::of(
+            refs,
+            self.baked.matrix.index.tile,
+            !self.options.skip_columns,
+        );
+        let mut h = std::array::from_fn(|_| vec![0.0; self.n()]);
+        let stats = self.gather.gather(refs, &active, &mut h);
+        (h, stats, active.active_groups)
+    }
+
+    /// Lights the scene with `lights` and the emission `scales` (material
+    /// name → scale, unlisted materials 1): `D`, `B0` and `H` (module doc
+    /// for what is reused).
+    pub fn frame(&mut self, lights: &[Light], scales: &BTreeMap<String, f32>) -> FrameStats {
+        let start = Instant::now();
+        let n = self.n();
+        let groups = n.div_ceil(4);
+        let mut stats = FrameStats::default();
+        let cache = self.options.cache;
+        let mut changed = !cache || self.frames == 0 || self.terms.len() != lights.len();
+
+        // Emission.
+        let emission_ok = cache
+            && self
+                .emission_term
+                .as_ref()
+                .is_some_and(|(s, _)| s == scales);
+        if emission_ok {
+            stats.terms_reused += 1;
+        } else {
+            changed = true;
+            let e = self.emission.exitance(n, scales);
+            let t0 = Instant::now();
+            let (h, g, active) = self.product(&e);
+            stats.seconds_gather += t0.elapsed().as_secs_f64();
+            add_gather(&mut stats, &g, active, groups);
+            stats.terms_computed += 1;
+            self.emission_term = Some((
+                scales.clone(),
+                Term {
+                    light: None,
+                    d: std::array::from_fn(|_| vec![0.0; n]),
+                    b0: e,
+                    h,
+                },
+            ));
+        }
+
+        // Lights.
+        self.terms.truncate(lights.len());
+        for (i, light) in lights.iter().enumerate() {
+            if cache
+                && self
+                    .terms
+                    .get(i)
+                    .is_some_and(|t| t.light.as_ref() == Some(light))
+            {
+                stats.terms_reused += 1;
+                continue;
+            }
+            changed = true;
+            let t0 = Instant::now();
+            let d = direct::patch_irradiance(
+                &self.baked,
+                &self.direct,
+                std::slice::from_ref(light),
+                self.options.samples,
+            );
+            stats.seconds_direct += t0.elapsed().as_secs_f64();
+            let b0 = direct::reflected(&self.baked, &d);
+            let t0 = Instant::now();
+            let (h, g, active) = self.product(&b0);
+            stats.seconds_gather += t0.elapsed().as_secs_f64();
+            add_gather(&mut stats, &g, active, groups);
+            stats.terms_computed += 1;
+            let term = Term {
+                light: Some(light.clone()),
+                d,
+                b0,
+                h,
+            };
+            if i < self.terms.len() {
+                self.terms[i] = term;
+            } else {
+                self.terms.push(term);
+            }
+        }
+
+        self.frames += 1;
+        if !changed {
+            stats.unchanged = true;
+            stats.seconds_total = start.elapsed().as_secs_f64();
+            return stats;
+        }
+        // Sum the terms in a fixed order: emission, then lights in order.
+        let (_, e) = self.emission_term.as_ref().expect("set above");
+        for c in 0..3 {
+            self.d[c].copy_from_slice(&e.d[c]);
+            self.b0[c].copy_from_slice(&e.b0[c]);
+            self.h[c].copy_from_slice(&e.h[c]);
+            for t in &self.terms {
+                for j in 0..n {
+                    self.d[c][j] += t.d[c][j];
+                    self.b0[c][j] += t.b0[c][j];
+                    self.h[c][j] += t.h[c][j];
+                }
+            }
+        }
+        stats.seconds_total = start.elapsed().as_secs_f64();
+        stats
+    }
+}
+
+fn add_gather(stats: &mut FrameStats, g: &GatherStats, active: usize, groups: usize) {
+    stats.gather.bytes_read += g.bytes_read;
+    stats.gather.tiles_touched += g.tiles_touched;
+    stats.gather.tiles_skipped += g.tiles_skipped;
+    stats.gather.entries += g.entries;
+    stats.active_groups += active;
+    stats.total_groups += groups;
+}
