@@ -1,0 +1,186 @@
+//! The run time's compressed gather (src/runtime/gather.rs) against the
+//! codec's reference decode and the exact product, for every codec, with
+//! and without AVX-512 and column skipping.
+
+use radiosity::bake::encode;
+use radiosity::bake::reorder;
+use radiosity::bakefile::codec::{CodecKind, Encoded, SparseValues, LOG_RANGE_AUTO};
+use radiosity::runtime::gather::{dense_product, simd_available, ActiveColumns, CompressedGather};
+use radiosity::synthetic;
+
+fn refs(t: &[Vec<f32>; 3]) -> [&[f32]; 3] {
+    [&t[0][..], &t[1][..], &t[2][..]]
+}
+
+/// The synthetic room's T_∞ in Hilbert order, and a B0 lit by one point
+/// light (zero where the light does not reach: whole column groups).
+fn problem(m: usize, b: usize, grey: bool) -> ([Vec<f32>; 3], [Vec<f32>; 3], usize) {
+    let mut patches = synthetic::room(m, b);
+    if grey {
+        for p in &mut patches {
+            p.albedo = [0.7; 3];
+        }
+    }
+    let n = patches.len();
+    let f = synthetic::form_factors(&patches);
+    let t = synthetic::transfer_rgb(&patches, &f);
+    let p = reorder::hilbert_order(&patches);
+    let t: [Vec<f32>; 3] = std::array::from_fn(|c| p.apply_symmetric(&t[c], n));
+    let mut b0 = synthetic::point_lights(&patches, 1, 7).remove(0);
+    for c in &mut b0 {
+        *c = p.apply_vec(c);
+        // A spot-like light: only the patches in the first third lit.
+        for (j, v) in c.iter_mut().enumerate() {
+            if j % 3 != 0 || j > n / 2 {
+                *v = 0.0;
+            }
+        }
+    }
+    (t, b0, n)
+}
+
+fn kinds() -> Vec<(&'static str, CodecKind)> {
+    vec![
+        ("bc1 default", CodecKind::default()),
+        (
+            "bc1 f16 sparse",
+            CodecKind::Bc1Log {
+                top_fraction: 0.02,
+                log_range: LOG_RANGE_AUTO,
+                sparse: SparseValues::F16,
+            },
+        ),
+        (
+            "bc1 no sparse",
+            CodecKind::Bc1Log {
+                top_fraction: 0.0,
+                log_range: 25.0,
+                sparse: SparseValues::F32,
+            },
+        ),
+        (
+            "bc4",
+            CodecKind::Bc4Log {
+                top_fraction: 0.02,
+                log_range: LOG_RANGE_AUTO,
+                sparse: SparseValues::Rgb9e5,
+            },
+        ),
+        ("bc6h", CodecKind::Bc6h),
+        ("f16", CodecKind::F16),
+        ("f32", CodecKind::F32),
+    ]
+}
+
+/// The f32 rounding bound of a sum of `n` non-negative products
+/// (Higham, "Accuracy and Stability of Numerical Algorithms", §3.1:
+/// `|ŝ − s| ≤ γ_n Σ|terms|`, `γ_n = n u / (1 − n u)`, and the terms are
+/// non-negative so `Σ|terms| = s`), plus 4 u for the decode tables' and
+/// the sparse values' own rounding; BC4's levels are looked up by their
+/// numerator `k / (7 · 255)` where the reference divides two f32 values,
+/// a relative difference of at most 2 u in `x`, amplified by `L x ≤ 30`
+/// through `e^{L (x − 1)}`: 60 u more.
+fn bound(n: usize, bc4: bool) -> f64 {
+    let u = f32::EPSILON as f64 / 2.0;
+    let g = n as f64 * u / (1.0 - n as f64 * u);
+    g + 4.0 * u + if bc4 { 60.0 * u } else { 0.0 }
+}
+
+#[test]
+fn gather_matches_the_reference_decode_for_every_codec() {
+    for grey in [false, true] {
+        let (t, b0, n) = problem(8, 2, grey);
+        let b = refs(&b0);
+        let exact = dense_product(refs(&t), n, b);
+        for (name, kind) in kinds() {
+            let e = encode::encode(kind, refs(&t), n).unwrap();
+            let reference = e.gather_f64(b);
+            let bc4 = matches!(e.format, radiosity::bakefile::codec::DenseFormat::Bc4);
+            for simd in [false, true] {
+                let g = CompressedGather::new(&e, simd);
+                assert_eq!(g.simd(), simd && simd_available());
+                let mut h: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+                let active = ActiveColumns::of(b, e.index.tile, false);
+                let stats = g.gather(b, &active, &mut h);
+                assert!(stats.bytes_read > 0);
+                let tol = bound(n, bc4);
+                let (mut d2, mut r2, mut worst) = (0.0f64, 0.0f64, 0.0f64);
+                for c in 0..3 {
+                    for i in 0..n {
+                        let r = reference[c][i];
+                        let rel = (h[c][i] as f64 - r).abs() / r.max(1e-30);
+                        if r > 0.0 {
+                            worst = worst.max(rel);
+                        }
+                        let x = exact[c][i];
+                        d2 += (h[c][i] as f64 - x).powi(2);
+                        r2 += x * x;
+                    }
+                }
+                assert!(
+                    worst <= tol,
+                    "{name} (grey {grey}, simd {simd}): worst relative difference to the \
+                     reference decode {worst:.3e} > {tol:.3e}"
+                );
+                // Against the exact product: the codec's own error, as the
+                // f64 reference decode measures it, plus the rounding bound.
+                let codec_error = encode::h_error(&e, &[exact.clone()], &[b0.clone()]);
+                let err = (d2 / r2).sqrt();
+                assert!(
+                    err <= codec_error + tol,
+                    "{name}: error {err:.4e} against the exact product exceeds the codec's \
+                     {codec_error:.4e}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn skipping_columns_changes_no_bit_and_reads_less() {
+    let (t, b0, n) = problem(8, 2, false);
+    let b = refs(&b0);
+    for (name, kind) in kinds() {
+        let e: Encoded = encode::encode(kind, refs(&t), n).unwrap();
+        for simd in [false, true] {
+            let g = CompressedGather::new(&e, simd);
+            let all = ActiveColumns::of(b, e.index.tile, true);
+            let some = ActiveColumns::of(b, e.index.tile, false);
+            assert!(some.active_groups < all.active_groups, "the light skips columns");
+            let mut h1: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+            let mut h2 = h1.clone();
+            let s1 = g.gather(b, &all, &mut h1);
+            let s2 = g.gather(b, &some, &mut h2);
+            for c in 0..3 {
+                for i in 0..n {
+                    assert_eq!(
+                        h1[c][i].to_bits(),
+                        h2[c][i].to_bits(),
+                        "{name} simd {simd}: H[{c}][{i}]"
+                    );
+                }
+            }
+            assert!(
+                s2.bytes_read < s1.bytes_read,
+                "{name}: {} bytes with skipping, {} without",
+                s2.bytes_read,
+                s1.bytes_read
+            );
+        }
+    }
+}
+
+#[test]
+fn a_zero_b0_gives_zero_and_reads_no_dense_data() {
+    let (t, _, n) = problem(6, 0, false);
+    let z: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    let e = encode::encode(CodecKind::default(), refs(&t), n).unwrap();
+    let g = CompressedGather::new(&e, true);
+    let active = ActiveColumns::of(refs(&z), e.index.tile, false);
+    assert_eq!(active.active_groups, 0);
+    let mut h: [Vec<f32>; 3] = std::array::from_fn(|_| vec![1.0; n]);
+    let s = g.gather(refs(&z), &active, &mut h);
+    assert!(h.iter().all(|c| c.iter().all(|&v| v == 0.0)));
+    assert_eq!(s.tiles_touched, 0);
+    assert_eq!(s.entries, 0);
+}
