@@ -146,7 +146,10 @@ fn skipping_columns_changes_no_bit_and_reads_less() {
             let g = CompressedGather::new(&e, simd);
             let all = ActiveColumns::of(b, e.index.tile, true);
             let some = ActiveColumns::of(b, e.index.tile, false);
-            assert!(some.active_groups < all.active_groups, "the light skips columns");
+            assert!(
+                some.active_groups < all.active_groups,
+                "the light skips columns"
+            );
             let mut h1: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
             let mut h2 = h1.clone();
             let s1 = g.gather(b, &all, &mut h1);

@@ -122,7 +122,10 @@ pub struct VoxelStats {
     /// Voxel groups merged into their neighbour's (staircases).
     pub merged_groups: u64,
     /// Voxel groups facing a surface that looks back from the neighbour
-    /// voxel, dropped, and their area.
+    /// voxel: kept as patches (they receive light), counted.
+    pub facing_back_groups: u64,
+    /// Voxel groups dropped as covered, and their area (none since facing
+    /// groups are kept; the fields stay for covered geometry).
     pub covered_groups: u64,
     pub covered_area: f64,
     /// Covered area by facing direction (+x, −x, +y, −y, +z, −z).
@@ -580,7 +583,12 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
             match holds.get(&grid.key(nb)) {
                 Some(mask) if mask & same != 0 => at = nb,
                 Some(mask) if mask & back != 0 => {
-                    covered = true;
+                    // A surface looks back from less than two voxels away
+                    // (a column, a thin wall's other side, a box on the
+                    // floor): the group still receives and reflects the
+                    // light that reaches it, so it stays a patch, counted.
+                    covered = false;
+                    stats.facing_back_groups += 1;
                     break;
                 }
                 _ => break,

@@ -67,7 +67,7 @@ pub struct SceneHash {
     /// file could be read, its bytes and their count as a `u64`.
     pub mtl: u64,
     /// Every diffuse texture the scene loaded, in material order: its path
-    /// (as the loader resolved it), its bytes and their count.
+    /// relative to the OBJ's directory, its bytes and their count.
     pub textures: u64,
 }
 
@@ -123,9 +123,13 @@ impl SceneHash {
             }
         }
         let mut textures = Fnv1a64::new();
+        let obj_dir = obj_path.parent().unwrap_or_else(|| Path::new(""));
         for m in &scene.materials {
             if let Some(t) = &m.diffuse_texture {
-                textures.update(t.to_string_lossy().as_bytes());
+                // The path relative to the OBJ's directory: the same scene
+                // reached through another path hashes the same.
+                let rel = t.strip_prefix(obj_dir).unwrap_or(t);
+                textures.update(rel.to_string_lossy().as_bytes());
                 let f = File::open(t).map_err(err(t))?;
                 let n = hash_stream(f, &mut textures).map_err(err(t))?;
                 textures.update(&n.to_le_bytes());
