@@ -80,6 +80,30 @@ enum Command {
 
 #[derive(Subcommand)]
 enum BenchCommand {
+    /// The CPU run time's frame stage by stage (direct, gather with and
+    /// without column skipping, unchanged frame, render), the gather's
+    /// bandwidth against a triad measured in the same run, and classic
+    /// radiosity (k dense f32 passes over F, and Jacobi to the same error)
+    /// on the same patches.
+    Frame {
+        /// The bake file.
+        bake: PathBuf,
+        /// The camera and lights (default: the scene's NAME.json).
+        #[arg(long, value_name = "FILE.json")]
+        camera_lights: Option<PathBuf>,
+        /// Repetitions per measurement (the fastest is reported).
+        #[arg(long, default_value_t = 5)]
+        repeat: usize,
+        #[arg(long, default_value_t = 640)]
+        width: usize,
+        #[arg(long, default_value_t = 480)]
+        height: usize,
+        /// Skip the classic baseline (it recomputes F).
+        #[arg(long)]
+        no_classic: bool,
+        #[command(flatten)]
+        device: DeviceArgs,
+    },
     /// Voxelization: OpenCL against the CPU reference at several voxel sizes.
     Voxelize {
         /// The scene file.
@@ -391,6 +415,23 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Render(args) => render(args),
         Command::Generate { name, output, list } => generate(name, output, list),
         Command::Bench { which } => match which {
+            BenchCommand::Frame {
+                bake,
+                camera_lights,
+                repeat,
+                width,
+                height,
+                no_classic,
+                device,
+            } => bench_frame(
+                &bake,
+                camera_lights,
+                repeat,
+                width,
+                height,
+                !no_classic,
+                device,
+            ),
             BenchCommand::Voxelize {
                 scene,
                 voxel_sizes,
@@ -624,6 +665,35 @@ fn generate(name: Option<String>, output: Option<PathBuf>, list: bool) -> anyhow
     for p in written {
         println!("wrote {}", p.display());
     }
+    Ok(())
+}
+
+/// `radiosity bench frame`.
+fn bench_frame(
+    bake: &Path,
+    camera_lights_file: Option<PathBuf>,
+    repeat: usize,
+    width: usize,
+    height: usize,
+    classic: bool,
+    device: DeviceArgs,
+) -> anyhow::Result<()> {
+    use radiosity::bakefile::baked::{resolve_scene_path, Baked};
+    if repeat == 0 || width == 0 || height == 0 {
+        bail!("--repeat, --width and --height must be at least 1");
+    }
+    let info = Baked::load(bake)?.info;
+    let config = camera_lights(camera_lights_file, &resolve_scene_path(bake, &info.scene))?;
+    let options = bench::frame::FrameBenchOptions {
+        repeat,
+        width,
+        height,
+        selection: DeviceSelection::from_flag_or_env(device.device)?,
+        classic,
+    };
+    let report = bench::frame::run(bake, &config, &options)
+        .with_context(|| format!("benchmarking frames of {}", bake.display()))?;
+    print!("{report}");
     Ok(())
 }
 

@@ -6,6 +6,7 @@
 
 pub mod compression;
 pub mod form_factor;
+pub mod frame;
 pub mod transfer;
 pub mod voxelize;
 
@@ -25,6 +26,32 @@ pub fn memory_bandwidth() -> f64 {
         best = best.min(t.elapsed().as_secs_f64());
     }
     (2 * n * 8) as f64 / best
+}
+
+/// Host memory bandwidth in bytes/s from a STREAM-like triad `a = b + s c`
+/// over three arrays of 2^25 f32 (128 MiB each), on all threads (rayon),
+/// counting 12 bytes per element (two reads, one write); the best of 5.
+pub fn memory_bandwidth_triad() -> f64 {
+    use rayon::prelude::*;
+    let n = 1usize << 25;
+    let b = vec![1.0f32; n];
+    let c = vec![2.0f32; n];
+    let mut a = vec![0.0f32; n];
+    let mut best = f64::INFINITY;
+    for _ in 0..5 {
+        let t = Instant::now();
+        a.par_chunks_mut(1 << 16)
+            .zip(b.par_chunks(1 << 16))
+            .zip(c.par_chunks(1 << 16))
+            .for_each(|((a, b), c)| {
+                for i in 0..a.len() {
+                    a[i] = b[i] + 3.0 * c[i];
+                }
+            });
+        std::hint::black_box(&mut a);
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    (12 * n) as f64 / best
 }
 
 pub fn best_of<T>(
