@@ -1,0 +1,365 @@
+//! The CPU run time (src/runtime/) on baked scenes generated here: energy
+//! balance in a closed box, lights outside a closed room, incremental
+//! updates against full products, colour bleeding in the Cornell box
+//! measured on pixels, the surface map's smoothness on a wall of two
+//! triangles, per-material emission.
+
+mod common;
+
+use common::{quad, write_quads, Quad};
+use radiosity::bake::voxelize::Resolution;
+use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
+use radiosity::bakefile::baked::Baked;
+use radiosity::bakefile::codec::CodecKind;
+use radiosity::core::math::SplitMix64;
+use radiosity::core::scene;
+use radiosity::core::scene_config::{self, Light};
+use radiosity::runtime::render::{render, View};
+use radiosity::runtime::texture::Albedo;
+use radiosity::runtime::{Runtime, RuntimeOptions};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Bakes `obj` (CPU-independent options, OpenCL device) and loads it.
+fn bake(obj: &Path, resolution: Resolution, codec: CodecKind) -> (Runtime, PathBuf) {
+    let mut c = BakeConfig::new(obj.to_path_buf(), resolution);
+    c.compute = ComputeChoice::OpenCl(Default::default());
+    c.codec = CodecChoice::Fixed(codec);
+    c.error_lights = 0;
+    let out = obj.with_extension("rad");
+    c.output = Some(out.clone());
+    common::gpu();
+    bake::run(&c, &mut |_| {}).expect("bake");
+    let baked = Baked::load(&out).unwrap();
+    let s = scene::load(obj).unwrap();
+    (Runtime::new(baked, s, RuntimeOptions::default()), out)
+}
+
+/// The inward faces of the box `[0, sx] × [0, sy] × [0, sz]`, albedo `a`.
+fn box_inward(s: [f64; 3], a: f64) -> Vec<Quad> {
+    let mut q = Vec::new();
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for side in [0.0, 1.0] {
+            let mut c = [s[0] / 2.0, s[1] / 2.0, s[2] / 2.0];
+            c[axis] = side * s[axis];
+            let mut eu = [0.0; 3];
+            eu[u] = 1.0;
+            let mut ev = [0.0; 3];
+            ev[v] = 1.0;
+            // Inward normal +axis at side 0 (u × v = +axis), −axis at side 1.
+            if side == 1.0 {
+                ev[v] = -1.0;
+            }
+            q.push(quad(c, eu, ev, s[u] / 2.0, s[v] / 2.0, [a; 3]));
+        }
+    }
+    q
+}
+
+fn point(p: [f32; 3], i: f32) -> Light {
+    Light::Point {
+        position: p,
+        intensity: [i; 3],
+    }
+}
+
+#[test]
+fn closed_box_balances_energy_and_every_shadowed_patch_gets_indirect_light() {
+    let rho = 0.5;
+    let mut quads = box_inward([1.0, 1.0, 1.0], rho);
+    // A plate above the floor shadows part of it (facing up; its underside
+    // is not modelled, so it blocks without receiving).
+    quads.push(quad(
+        [0.3, 0.3, 0.3],
+        [1.0, 0.0, 0.0],
+        [0.0, 0.0, -1.0],
+        0.2,
+        0.2,
+        [rho; 3],
+    ));
+    let obj = write_quads("rt-box", &quads);
+    let (mut rt, _) = bake(&obj, Resolution::VoxelSize(0.125), CodecKind::default());
+    let lights = [point([0.5, 0.8, 0.5], 1.0)];
+    rt.frame(&lights, &BTreeMap::new());
+    let n = rt.n();
+    let (d, h) = (rt.d().clone(), rt.h().clone());
+    let mut shadowed = 0;
+    for j in 0..n {
+        if d[0][j] == 0.0 {
+            shadowed += 1;
+            assert!(
+                h[0][j] > 0.0,
+                "patch {j} gets neither direct nor indirect light"
+            );
+        }
+    }
+    assert!(shadowed > 0, "the plate shadows some patches");
+    // Energy: in a closed environment with uniform albedo ρ (row sums 1,
+    // reciprocity), Σ A H = Σ A B0 / (1 − ρ) with B0 = ρ D. The plate makes
+    // the box not quite closed (its underside is open to the floor), so
+    // only the box's own patches are summed and both sides include what
+    // the plate exchanges; the tolerance (3 %) covers the codec's error on
+    // H (≈ 2 % relative RMS, less on an area-weighted sum, which the mass
+    // correction keeps) and the form factors' row sums.
+    let (mut lhs, mut rhs) = (0.0f64, 0.0f64);
+    for (j, p) in rt.baked.patches.iter().enumerate() {
+        let a = p.area as f64;
+        lhs += a * h[0][j] as f64;
+        rhs += a * rho * d[0][j] as f64 / (1.0 - rho);
+    }
+    let rel = (lhs / rhs - 1.0).abs();
+    assert!(
+        rel < 0.03,
+        "Σ A H = {lhs}, Σ A ρ D / (1 − ρ) = {rhs}: {rel:.4}"
+    );
+}
+
+#[test]
+fn a_light_outside_a_closed_room_changes_nothing_inside_bit_for_bit() {
+    let obj = write_quads("rt-outside", &box_inward([1.0, 0.75, 1.25], 0.6));
+    let (mut rt, _) = bake(&obj, Resolution::VoxelSize(0.125), CodecKind::default());
+    let inside = point([0.5, 0.4, 0.6], 2.0);
+    rt.frame(std::slice::from_ref(&inside), &BTreeMap::new());
+    let h0 = rt.h().clone();
+    assert!(h0[0].iter().any(|&v| v > 0.0));
+    let mut rng = SplitMix64::new(3);
+    for _ in 0..10 {
+        let p = [
+            3.0 + rng.uniform() as f32,
+            -2.0 + 4.0 * rng.uniform() as f32,
+            3.0 * rng.uniform() as f32,
+        ];
+        rt.frame(&[inside.clone(), point(p, 50.0)], &BTreeMap::new());
+        for c in 0..3 {
+            for (a, b) in rt.h()[c].iter().zip(&h0[c]) {
+                assert_eq!(a.to_bits(), b.to_bits());
+            }
+        }
+    }
+}
+
+#[test]
+fn incremental_frames_equal_a_full_product_after_100_light_moves() {
+    let obj = common::bundled("cornell_box");
+    let dir = common::temp_dir("rt-incr");
+    for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
+        std::fs::copy(obj.with_file_name(f), dir.join(f)).unwrap();
+    }
+    let (mut rt, _) = bake(
+        &dir.join("cornell_box.obj"),
+        Resolution::VoxelSize(60.0),
+        CodecKind::default(),
+    );
+    let n = rt.n();
+    let mut rng = SplitMix64::new(11);
+    let mut lights: Vec<Light> = (0..3)
+        .map(|_| point([278.0, 400.0, 279.0], 20000.0))
+        .collect();
+    let u = f32::EPSILON as f64 / 2.0;
+    for step in 0..100 {
+        let k = step % 3;
+        lights[k] = Light::Spot {
+            position: [
+                50.0 + 450.0 * rng.uniform() as f32,
+                50.0 + 450.0 * rng.uniform() as f32,
+                50.0 + 450.0 * rng.uniform() as f32,
+            ],
+            direction: [rng.uniform() as f32 - 0.5, -1.0, rng.uniform() as f32 - 0.5],
+            intensity: [30000.0, 20000.0, 10000.0],
+            cone_angle_deg: 20.0 + 40.0 * rng.uniform() as f32,
+            beam_angle_deg: 10.0,
+        };
+        let s = rt.frame(&lights, &BTreeMap::new());
+        if step > 0 {
+            assert_eq!(s.terms_computed, 1, "only the moved light is recomputed");
+        }
+        let b0 = rt.b0().clone();
+        let (full, _, _) = rt.product(&b0);
+        // Each product of non-negative terms errs by at most γ_n of the
+        // exact value (Higham §3.1); the run time's H adds the 4 terms'
+        // products (3 more roundings), and B0's sum of terms rounds too.
+        let g = n as f64 * u / (1.0 - n as f64 * u);
+        let bound = 2.0 * g + 8.0 * u;
+        for c in 0..3 {
+            for j in 0..n {
+                let (a, b) = (rt.h()[c][j] as f64, full[c][j] as f64);
+                assert!(
+                    (a - b).abs() <= bound * b.abs().max(1e-30) * 1.01 + 1e-30,
+                    "step {step}: H[{c}][{j}] {a} vs a full product {b}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn cornell_box_wall_next_to_the_red_wall_receives_more_red_on_pixels() {
+    let src = common::bundled("cornell_box");
+    let dir = common::temp_dir("rt-cornell");
+    for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
+        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
+    }
+    let obj = dir.join("cornell_box.obj");
+    let (mut rt, _) = bake(&obj, Resolution::VoxelSize(40.0), CodecKind::default());
+    let config = scene_config::load(&dir.join("cornell_box.json")).unwrap();
+    rt.frame(&config.lights, &config.emission);
+    let albedo = Albedo::new(&rt.scene);
+    let (w, h) = (160, 120);
+    let (img, stats) = render(&rt, &config, View::Indirect, w, h, &albedo);
+    assert_eq!(stats.unmapped, 0);
+    // The back wall, above the blocks: its left part (next to the red wall,
+    // on the left of the camera) against its right part (next to the green).
+    let mean = |x0: f64, x1: f64| {
+        let mut s = [0.0f64; 3];
+        let mut k = 0;
+        for y in (0.2 * h as f64) as usize..(0.35 * h as f64) as usize {
+            for x in (x0 * w as f64) as usize..(x1 * w as f64) as usize {
+                let p = img.radiance[y * w + x];
+                for c in 0..3 {
+                    s[c] += p[c] as f64;
+                }
+                k += 1;
+            }
+        }
+        s.map(|v| v / k as f64)
+    };
+    let left = mean(0.30, 0.36);
+    let right = mean(0.64, 0.70);
+    assert!(
+        left[0] > left[1],
+        "next to the red wall: red {} > green {}",
+        left[0],
+        left[1]
+    );
+    // The light is warm (Ke 17 : 12 : 4), so white surfaces are redder
+    // than green everywhere; the red wall makes its side redder still.
+    assert!(
+        left[0] / left[1] > 1.1 * (right[0] / right[1]),
+        "red/green next to the red wall {} against next to the green wall {}",
+        left[0] / left[1],
+        right[0] / right[1]
+    );
+}
+
+#[test]
+fn a_wall_of_two_triangles_shows_a_smooth_gradient_of_indirect_light() {
+    // A 4 × 4 floor (one quad: two triangles) and a 4 × 2 wall standing on
+    // its edge at x = 0, both grey; a point light close to the wall lights
+    // the wall strongly and the floor's far end little, so the floor's
+    // indirect light (mostly from the wall) falls with x.
+    let quads = vec![
+        quad(
+            [2.0, 0.0, 2.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+            2.0,
+            2.0,
+            [0.6; 3],
+        ),
+        quad(
+            [0.0, 1.0, 2.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            1.0,
+            2.0,
+            [0.8; 3],
+        ),
+    ];
+    let obj = write_quads("rt-gradient", &quads);
+    let (mut rt, _) = bake(&obj, Resolution::VoxelSize(0.25), CodecKind::F32);
+    rt.frame(&[point([0.3, 1.0, 2.0], 2.0)], &BTreeMap::new());
+    // Looking straight down at the floor.
+    let config = scene_config::SceneConfig {
+        emission: BTreeMap::new(),
+        camera: scene_config::Camera {
+            position: [2.0, 6.0, 2.0],
+            target: [2.0, 0.0, 2.0],
+            up: [0.0, 0.0, -1.0],
+            fov_y_deg: 40.0,
+        },
+        lights: vec![point([0.3, 1.0, 2.0], 2.0)],
+        units: "m".into(),
+        description: String::new(),
+    };
+    let albedo = Albedo::new(&rt.scene);
+    let (w, h) = (200, 200);
+    let (img, _) = render(&rt, &config, View::Indirect, w, h, &albedo);
+    // The middle row, from x ≈ 0.4 to x ≈ 3.6 (pixels whose floor point
+    // lies inside the floor's interior voxels).
+    let y = h / 2;
+    let row: Vec<f64> = (0..w)
+        .filter(|&x| img.covered[y * w + x])
+        .map(|x| img.radiance[y * w + x][0] as f64)
+        .collect();
+    let m = row.len();
+    // The floor's indirect light rises over the first half metre (the
+    // wall's brightest band is seen at a steeper angle there), then falls:
+    // from its peak on it must fall monotonically.
+    let inner = &row[m / 10..m - m / 10];
+    let peak = (0..inner.len())
+        .max_by(|&a, &b| inner[a].total_cmp(&inner[b]))
+        .unwrap();
+    assert!(peak < inner.len() / 4, "the peak lies near the wall");
+    let line = &inner[peak..];
+    let range = line.first().unwrap() - line.last().unwrap();
+    assert!(range > 0.0, "the floor is lit more near the wall");
+    let mean_step = range / (line.len() - 1) as f64;
+    for (k, p) in line.windows(2).enumerate() {
+        let d = p[0] - p[1];
+        // Monotone (up to f32 rounding), and no step: bilinear weights make
+        // H continuous, so adjacent pixels differ by the local slope, at
+        // most a few times the mean slope.
+        assert!(
+            d >= -1e-6 * p[0].abs(),
+            "pixel {k}: rises from {} to {}",
+            p[0],
+            p[1]
+        );
+        assert!(
+            d <= 4.0 * mean_step,
+            "pixel {k}: step {d} against a mean slope {mean_step}"
+        );
+    }
+}
+
+#[test]
+fn emission_scales_per_material_and_reproduces_the_stored_emission() {
+    let src = common::bundled("cornell_box");
+    let dir = common::temp_dir("rt-emission");
+    for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
+        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
+    }
+    let (mut rt, _) = bake(
+        &dir.join("cornell_box.obj"),
+        Resolution::VoxelSize(60.0),
+        CodecKind::default(),
+    );
+    let n = rt.n();
+    let e = rt.emission.exitance(n, &BTreeMap::new());
+    for (j, p) in rt.baked.patches.iter().enumerate() {
+        for c in 0..3 {
+            assert!(
+                (e[c][j] - p.emission[c]).abs() <= 1e-4 * p.emission[c].max(1.0),
+                "patch {j}: {} vs stored {}",
+                e[c][j],
+                p.emission[c]
+            );
+        }
+    }
+    assert_eq!(rt.emission.materials, ["light"]);
+    rt.frame(&[], &BTreeMap::new());
+    let h1 = rt.h().clone();
+    assert!(h1[0].iter().sum::<f32>() > 0.0);
+    let mut half = BTreeMap::new();
+    half.insert("light".to_string(), 0.5f32);
+    rt.frame(&[], &half);
+    for c in 0..3 {
+        for j in 0..n {
+            assert!((rt.h()[c][j] - 0.5 * h1[c][j]).abs() <= 1e-5 * h1[c][j].max(1e-30));
+        }
+    }
+    half.insert("light".to_string(), 0.0);
+    rt.frame(&[], &half);
+    assert!(rt.h().iter().all(|c| c.iter().all(|&v| v == 0.0)));
+}
