@@ -587,6 +587,10 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
             args.height
         );
     }
+    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("creating the output directory {}", dir.display()))?;
+    }
     let rad = bake_for(&args.input, args.patches, &args.device)?;
     let baked = Baked::load(&rad)?;
     let scene_path = args

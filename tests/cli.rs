@@ -344,3 +344,70 @@ fn generate_writes_the_committed_scene() {
         "the error lists the known names"
     );
 }
+
+/// `render` on a scene bakes it into the cache (then reuses it), writes a
+/// PNG and a PFM whose pixels match, and refuses bad options clearly.
+#[test]
+fn render_bakes_or_reuses_and_writes_png_and_pfm() {
+    let dir = common::temp_dir("cli-render");
+    let src = common::bundled("cornell_box");
+    for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
+        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
+    }
+    let obj = dir.join("cornell_box.obj");
+    let png = dir.join("out.png");
+    let pfm = dir.join("out.pfm");
+    let cache = dir.join("cache");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            obj.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--patches",
+            "400",
+            "--width",
+            "64",
+            "--height",
+            "48",
+        ];
+        args.extend_from_slice(extra);
+        Command::new(env!("CARGO_BIN_EXE_radiosity"))
+            .args(&args)
+            .env("RADIOSITY_CACHE_DIR", &cache)
+            .output()
+            .unwrap()
+    };
+    let o = run(&["--hdr", pfm.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("reusing"), "{}", stderr(&o));
+    let img = image::open(&png).unwrap().to_rgb8();
+    assert_eq!((img.width(), img.height()), (64, 48));
+    assert!(img.pixels().any(|p| p[0] > 30), "the image is not black");
+    let bytes = std::fs::read(&pfm).unwrap();
+    assert!(bytes.starts_with(b"PF\n64 48\n-1.0\n"));
+    assert_eq!(bytes.len(), b"PF\n64 48\n-1.0\n".len() + 64 * 48 * 12);
+    // Second run: the cached bake is reused.
+    let o = run(&["--view", "indirect"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("reusing"), "{}", stderr(&o));
+    // Bad options name the flag.
+    let o = run(&["--view", "sideways"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("--view"), "{}", stderr(&o));
+    let o = run(&["--samples", "0"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("--samples"), "{}", stderr(&o));
+}
+
+/// `info` on a file named `.rad` that is not a bake file says so (it does
+/// not try it as an OBJ).
+#[test]
+fn info_on_a_non_bake_rad_file_says_so() {
+    let dir = common::temp_dir("cli-notrad");
+    let f = dir.join("x.rad");
+    std::fs::write(&f, b"abcd").unwrap();
+    let o = radiosity(&["info", f.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("not a radiosity bake file"), "{}", stderr(&o));
+}
