@@ -409,5 +409,9 @@ fn info_on_a_non_bake_rad_file_says_so() {
     std::fs::write(&f, b"abcd").unwrap();
     let o = radiosity(&["info", f.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("not a radiosity bake file"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("not a radiosity bake file"),
+        "{}",
+        stderr(&o)
+    );
 }

@@ -4,6 +4,9 @@
 //! measured on pixels, the surface map's smoothness on a wall of two
 //! triangles, per-material emission.
 
+// Index loops over channels and patches read several arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 
 use common::{quad, write_quads, Quad};

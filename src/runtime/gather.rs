@@ -79,7 +79,8 @@ pub struct GatherStats {
     /// inactive.
     pub tiles_touched: u64,
     pub tiles_skipped: u64,
-    /// Matrix entries decoded and multiplied (per stored channel).
+    /// Matrix entries (positions, each with its stored channels) decoded
+    /// and multiplied.
     pub entries: u64,
 }
 
@@ -92,8 +93,14 @@ struct Bc1Table {
 
 /// The sparse part as the gather reads it.
 struct SparseRt {
-    row_ptr: Vec<u32>,
-    cols: Vec<u32>,
+    /// Per row of tiles, its blocks of entries by tile column:
+    /// `blocks[block_start[tr]..block_start[tr + 1]]`.
+    block_start: Vec<u32>,
+    /// (tile column, first entry) of each block; a block's entries end
+    /// where the next block's start (`entries` closes the list).
+    blocks: Vec<(u16, u32)>,
+    /// Per entry: row within the tile (high byte) and column within it.
+    pos: Vec<u16>,
     /// RGB9E5 words (precision RGB9E5) or values (`channels` per entry).
     packed: Vec<u32>,
     values: Vec<f32>,
@@ -257,24 +264,47 @@ impl CompressedGather {
                 *fc = (2f64.powi(ex as i32 - 24) / s as f64) as f32;
             }
         }
+        // The sparse part re-laid by tile (row of tiles, then tile column,
+        // then row and column), so that a skipped tile skips its entries'
+        // memory too.
+        let mut order: Vec<(usize, usize, usize, u32, usize)> = Vec::with_capacity(sp.len());
+        for (i, w) in sp.row_ptr.windows(2).enumerate() {
+            for k in w[0] as usize..w[1] as usize {
+                let j = sp.cols[k];
+                order.push((i / tile, j as usize / tile, i, j, k));
+            }
+        }
+        order.sort_unstable();
+        let mut block_start = vec![0u32; tps + 1];
+        let mut blocks: Vec<(u16, u32)> = Vec::new();
+        let mut pos = Vec::with_capacity(order.len());
+        let (mut packed, mut values) = (Vec::new(), Vec::new());
+        let ch = e.channels;
+        for (idx, &(tr, tc, i, j, k)) in order.iter().enumerate() {
+            if idx == 0 || order[idx - 1].0 != tr || order[idx - 1].1 != tc {
+                blocks.push((tc as u16, idx as u32));
+            }
+            block_start[tr + 1] = blocks.len() as u32;
+            pos.push((((i % tile) as u16) << 8) | (j as usize % tile) as u16);
+            if rgb9e5 {
+                let v = &sp.values[3 * k..3 * k + 3];
+                packed.push(rgb9e5::pack(std::array::from_fn(|c| v[c] * sp.scale[c])));
+            } else {
+                values.extend_from_slice(&sp.values[ch * k..ch * k + ch]);
+            }
+        }
+        for r in 1..=tps {
+            block_start[r] = block_start[r].max(block_start[r - 1]);
+        }
+        blocks.push((u16::MAX, order.len() as u32));
         let sparse = SparseRt {
-            row_ptr: sp.row_ptr.clone(),
-            cols: sp.cols.clone(),
-            packed: if rgb9e5 {
-                sp.values
-                    .chunks_exact(3)
-                    .map(|v| rgb9e5::pack(std::array::from_fn(|c| v[c] * sp.scale[c])))
-                    .collect()
-            } else {
-                Vec::new()
-            },
-            values: if rgb9e5 {
-                Vec::new()
-            } else {
-                sp.values.clone()
-            },
+            block_start,
+            blocks,
+            pos,
+            packed,
+            values,
             exp_factor,
-            channels: e.channels,
+            channels: ch,
             rgb9e5,
         };
         CompressedGather {
@@ -369,6 +399,11 @@ impl CompressedGather {
                 // c of the block at lane 4r + c).
                 let bh = h / 4;
                 let mut acc = vec![[[0.0f32; 16]; 3]; bh];
+                // Full BC1 rows of tiles on AVX-512 run in one call that
+                // keeps the 24 accumulators in registers: the active block
+                // columns (byte offset, first column) are listed first.
+                let fast = self.simd && self.format == DenseFormat::Bc1 && bh == 8;
+                let mut fast_cols: Vec<(u32, u32)> = Vec::new();
                 for slot in self.row_start[tr] as usize..self.row_start[tr + 1] as usize {
                     let tc = self.cols[slot] as usize;
                     if !active.tile[tc] {
@@ -391,6 +426,12 @@ impl CompressedGather {
                             continue;
                         }
                         let c0 = 4 * g;
+                        if fast {
+                            fast_cols.push(((base + bc * col_bytes) as u32, c0 as u32));
+                            stats.bytes_read += col_bytes as u64;
+                            stats.entries += (16 * bh) as u64;
+                            continue;
+                        }
                         let mut b = [[0.0f32; 4]; 3];
                         for (ch, bch) in b.iter_mut().enumerate().take(out_ch) {
                             for (k, v) in bch.iter_mut().enumerate() {
@@ -399,13 +440,27 @@ impl CompressedGather {
                         }
                         let col = &self.dense[base + bc * col_bytes..base + (bc + 1) * col_bytes];
                         stats.bytes_read += col_bytes as u64;
-                        stats.entries += (16 * bh * self.channels) as u64;
+                        stats.entries += (16 * bh) as u64;
                         if self.format == DenseFormat::Bc1 {
                             self.bc1_column(col, &b, &mut acc);
                         } else {
                             self.bc4_column(col, &b, out_ch, &mut acc);
                         }
                     }
+                }
+                #[cfg(target_arch = "x86_64")]
+                if fast {
+                    // SAFETY: `simd` is set only when the CPU reports AVX-512F.
+                    unsafe {
+                        bc1_row_avx512(
+                            &self.dense,
+                            &fast_cols,
+                            b0,
+                            self.n,
+                            self.bc1.as_ref().expect("BC1 tables"),
+                            &mut acc,
+                        )
+                    };
                 }
                 for (br, a) in acc.iter().enumerate() {
                     for r in 0..4 {
@@ -431,7 +486,7 @@ impl CompressedGather {
                     let start = self.offsets[slot] as usize;
                     decode_tile_bytes(&self.book, &self.dense[start..start + len], h, w, &mut buf);
                     stats.bytes_read += len as u64;
-                    stats.entries += (h * w * ch) as u64;
+                    stats.entries += (h * w) as u64;
                     let c0 = tc * tile;
                     for (r, row) in rows.iter_mut().enumerate() {
                         for c in 0..w {
@@ -448,37 +503,41 @@ impl CompressedGather {
                 }
             }
         }
-        // The sparse part of these rows.
+        // The sparse part of these rows, tile by tile.
         let sp = &self.sparse;
-        if !sp.row_ptr.is_empty() {
-            for (r, row) in rows.iter_mut().enumerate() {
-                let i = tr * tile + r;
-                if i >= self.n {
-                    break;
+        let entry_bytes = if sp.rgb9e5 {
+            6
+        } else {
+            2 + 4 * sp.channels as u64
+        };
+        for bi in sp.block_start[tr] as usize..sp.block_start[tr + 1] as usize {
+            let (tc, first) = sp.blocks[bi];
+            let end = sp.blocks[bi + 1].1 as usize;
+            let tc = tc as usize;
+            if !active.tile[tc] {
+                continue;
+            }
+            stats.bytes_read += (end - first as usize) as u64 * entry_bytes;
+            for e in first as usize..end {
+                let p = sp.pos[e];
+                let (r, j) = ((p >> 8) as usize, tc * tile + (p & 0xff) as usize);
+                if !active.group[j / 4] {
+                    continue;
                 }
-                let (a, b) = (sp.row_ptr[i] as usize, sp.row_ptr[i + 1] as usize);
-                stats.bytes_read +=
-                    4 * (b - a) as u64 * if sp.rgb9e5 { 2 } else { 1 + sp.channels as u64 };
-                for e in a..b {
-                    let j = sp.cols[e] as usize;
-                    if !active.group[j / 4] {
-                        continue;
-                    }
-                    let v: [f32; 3] = if sp.rgb9e5 {
-                        let p = sp.packed[e];
-                        let f = &sp.exp_factor[(p >> 27) as usize];
-                        [
-                            (p & 0x1ff) as f32 * f[0],
-                            ((p >> 9) & 0x1ff) as f32 * f[1],
-                            ((p >> 18) & 0x1ff) as f32 * f[2],
-                        ]
-                    } else {
-                        let s = &sp.values[e * sp.channels..(e + 1) * sp.channels];
-                        std::array::from_fn(|c| s[c.min(sp.channels - 1)])
-                    };
-                    for (oc, o) in row.iter_mut().enumerate().take(out_ch) {
-                        *o += v[oc] * b0[oc][j];
-                    }
+                let v: [f32; 3] = if sp.rgb9e5 {
+                    let p = sp.packed[e];
+                    let f = &sp.exp_factor[(p >> 27) as usize];
+                    [
+                        (p & 0x1ff) as f32 * f[0],
+                        ((p >> 9) & 0x1ff) as f32 * f[1],
+                        ((p >> 18) & 0x1ff) as f32 * f[2],
+                    ]
+                } else {
+                    let s = &sp.values[e * sp.channels..(e + 1) * sp.channels];
+                    std::array::from_fn(|c| s[c.min(sp.channels - 1)])
+                };
+                for (oc, o) in rows[r].iter_mut().enumerate().take(out_ch) {
+                    *o += v[oc] * b0[oc][j];
                 }
             }
         }
@@ -611,6 +670,72 @@ unsafe fn bc1_column_avx512(
             let vals = _mm512_permutexvar_ps(iv, pv);
             let ap = a[ch].as_mut_ptr();
             _mm512_storeu_ps(ap, _mm512_fmadd_ps(vals, bv[ch], _mm512_loadu_ps(ap)));
+        }
+    }
+}
+
+/// A full BC1 row of tiles (8 block rows) on AVX-512: the block columns
+/// `cols` (byte offset of their 8 blocks, first matrix column), each times
+/// its 4 values of `b0`, into `acc`, with the 24 accumulators (8 block rows
+/// × 3 channels) held in registers for the whole row. The same operations
+/// in the same order as [`bc1_column_avx512`] column by column.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn bc1_row_avx512(
+    dense: &[u8],
+    cols: &[(u32, u32)],
+    b0: [&[f32]; 3],
+    n: usize,
+    tables: &[Bc1Table; 3],
+    acc: &mut [[[f32; 16]; 3]],
+) {
+    use std::arch::x86_64::*;
+    let shifts = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+    let three = _mm512_set1_epi32(3);
+    let mut a = [[_mm512_setzero_ps(); 3]; 8];
+    for (k, row) in a.iter_mut().enumerate() {
+        for (c, v) in row.iter_mut().enumerate() {
+            *v = _mm512_loadu_ps(acc[k][c].as_ptr());
+        }
+    }
+    let (v0, v1, v2) = (&tables[0].values, &tables[1].values, &tables[2].values);
+    for &(off, c0) in cols {
+        let c0 = c0 as usize;
+        let b: [__m512; 3] = std::array::from_fn(|c| {
+            let mut q = [0.0f32; 4];
+            for (i, x) in q.iter_mut().enumerate() {
+                if c0 + i < n {
+                    *x = *b0[c].get_unchecked(c0 + i);
+                }
+            }
+            _mm512_broadcast_f32x4(_mm_loadu_ps(q.as_ptr()))
+        });
+        let col = dense.get_unchecked(off as usize..off as usize + 64);
+        for (k, row) in a.iter_mut().enumerate() {
+            let blk = col.as_ptr().add(8 * k);
+            let word = (blk as *const u64).read_unaligned();
+            let c0w = (word & 0xffff) as u32;
+            let c1w = ((word >> 16) & 0xffff) as u32;
+            let idx = (word >> 32) as u32;
+            let mode = usize::from(c0w > c1w);
+            let kr = (mode << 10) + ((((c0w >> 11) << 5) | (c1w >> 11)) as usize);
+            let kg = (mode << 12) + (((((c0w >> 5) & 63) << 6) | ((c1w >> 5) & 63)) as usize);
+            let kb = (mode << 10) + ((((c0w & 31) << 5) | (c1w & 31)) as usize);
+            let iv = _mm512_and_epi32(
+                _mm512_srlv_epi32(_mm512_set1_epi32(idx as i32), shifts),
+                three,
+            );
+            let pr = _mm512_broadcast_f32x4(_mm_loadu_ps(v0.get_unchecked(kr).as_ptr()));
+            let pg = _mm512_broadcast_f32x4(_mm_loadu_ps(v1.get_unchecked(kg).as_ptr()));
+            let pb = _mm512_broadcast_f32x4(_mm_loadu_ps(v2.get_unchecked(kb).as_ptr()));
+            row[0] = _mm512_fmadd_ps(_mm512_permutexvar_ps(iv, pr), b[0], row[0]);
+            row[1] = _mm512_fmadd_ps(_mm512_permutexvar_ps(iv, pg), b[1], row[1]);
+            row[2] = _mm512_fmadd_ps(_mm512_permutexvar_ps(iv, pb), b[2], row[2]);
+        }
+    }
+    for (k, row) in a.iter().enumerate() {
+        for (c, v) in row.iter().enumerate() {
+            _mm512_storeu_ps(acc[k][c].as_mut_ptr(), *v);
         }
     }
 }

@@ -155,8 +155,9 @@ use serde::Serialize;
 pub const TILE: usize = 32;
 
 /// The largest tile edge a valid encoding may declare (the reader's bound;
-/// the encoder uses [`TILE`]).
-pub const MAX_TILE: usize = 1024;
+/// the encoder uses [`TILE`]); positions inside a tile then fit a byte
+/// each, which the run time's sparse layout relies on.
+pub const MAX_TILE: usize = 256;
 
 /// The thesis's log range `L`: bytes span `[e^{−L}, 1]` of the maximum.
 pub const DEFAULT_LOG_RANGE: f32 = 25.0;
