@@ -106,5 +106,6 @@ pub mod bakefile;
 pub mod bench;
 pub mod core;
 pub mod generate;
+pub mod reference;
 pub mod runtime;
 pub mod synthetic;

@@ -124,7 +124,8 @@ fn gather_matches_the_reference_decode_for_every_codec() {
                 );
                 // Against the exact product: the codec's own error, as the
                 // f64 reference decode measures it, plus the rounding bound.
-                let codec_error = encode::h_error(&e, std::slice::from_ref(&exact), std::slice::from_ref(&b0));
+                let codec_error =
+                    encode::h_error(&e, std::slice::from_ref(&exact), std::slice::from_ref(&b0));
                 let err = (d2 / r2).sqrt();
                 assert!(
                     err <= codec_error + tol,

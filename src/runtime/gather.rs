@@ -402,7 +402,7 @@ impl CompressedGather {
                 // Full BC1 rows of tiles on AVX-512 run in one call that
                 // keeps the 24 accumulators in registers: the active block
                 // columns (byte offset, first column) are listed first.
-                let fast = self.simd && self.format == DenseFormat::Bc1 && bh == 8;
+                let fast = self.simd && self.format == DenseFormat::Bc1;
                 let mut fast_cols: Vec<(u32, u32)> = Vec::new();
                 for slot in self.row_start[tr] as usize..self.row_start[tr + 1] as usize {
                     let tc = self.cols[slot] as usize;
@@ -452,14 +452,21 @@ impl CompressedGather {
                 if fast {
                     // SAFETY: `simd` is set only when the CPU reports AVX-512F.
                     unsafe {
-                        bc1_row_avx512(
-                            &self.dense,
-                            &fast_cols,
-                            b0,
-                            self.n,
-                            self.bc1.as_ref().expect("BC1 tables"),
-                            &mut acc,
-                        )
+                        let tables = self.bc1.as_ref().expect("BC1 tables");
+                        let args = (&self.dense[..], &fast_cols[..], b0, self.n, tables);
+                        // The common full row of tiles (8 block rows) with
+                        // its accumulators in registers; the last, shorter
+                        // one through the same code with fewer rows.
+                        match bh {
+                            8 => bc1_row_avx512::<8>(args, &mut acc),
+                            7 => bc1_row_avx512::<7>(args, &mut acc),
+                            6 => bc1_row_avx512::<6>(args, &mut acc),
+                            5 => bc1_row_avx512::<5>(args, &mut acc),
+                            4 => bc1_row_avx512::<4>(args, &mut acc),
+                            3 => bc1_row_avx512::<3>(args, &mut acc),
+                            2 => bc1_row_avx512::<2>(args, &mut acc),
+                            _ => bc1_row_avx512::<1>(args, &mut acc),
+                        }
                     };
                 }
                 for (br, a) in acc.iter().enumerate() {
@@ -547,12 +554,6 @@ impl CompressedGather {
     /// One BC1 block column (`bh` blocks) times `b`, into `acc`.
     fn bc1_column(&self, col: &[u8], b: &[[f32; 4]; 3], acc: &mut [[[f32; 16]; 3]]) {
         let tables = self.bc1.as_ref().expect("BC1 tables");
-        #[cfg(target_arch = "x86_64")]
-        if self.simd {
-            // SAFETY: `simd` is set only when the CPU reports AVX-512F.
-            unsafe { bc1_column_avx512(col, b, tables, acc) };
-            return;
-        }
         for (k, a) in acc.iter_mut().enumerate() {
             let blk = &col[8 * k..8 * k + 8];
             let c0 = u16::from_le_bytes([blk[0], blk[1]]) as u32;
@@ -630,69 +631,33 @@ pub fn simd_available() -> bool {
     }
 }
 
-/// [`CompressedGather::bc1_column`] with AVX-512: per block, the 16 indices
-/// in one vector, and per channel one permute of the 4-entry palette and
-/// one fused multiply-add into the block row's 16-lane accumulator.
+/// The inputs of [`bc1_row_avx512`]: the dense data, the active block
+/// columns (byte offset of their blocks, first matrix column), `B0`, `n`
+/// and the palette tables.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn bc1_column_avx512(
-    col: &[u8],
-    b: &[[f32; 4]; 3],
-    tables: &[Bc1Table; 3],
-    acc: &mut [[[f32; 16]; 3]],
-) {
-    use std::arch::x86_64::*;
-    let shifts = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
-    let three = _mm512_set1_epi32(3);
-    let bv: [__m512; 3] =
-        std::array::from_fn(|c| _mm512_broadcast_f32x4(_mm_loadu_ps(b[c].as_ptr())));
-    for (k, a) in acc.iter_mut().enumerate() {
-        let blk = &col[8 * k..8 * k + 8];
-        let c0 = u16::from_le_bytes([blk[0], blk[1]]) as u32;
-        let c1 = u16::from_le_bytes([blk[2], blk[3]]) as u32;
-        let idx = u32::from_le_bytes([blk[4], blk[5], blk[6], blk[7]]);
-        let mode = usize::from(c0 > c1);
-        let keys = [
-            ((c0 >> 11) << 5) | (c1 >> 11),
-            (((c0 >> 5) & 63) << 6) | ((c1 >> 5) & 63),
-            ((c0 & 31) << 5) | (c1 & 31),
-        ];
-        let iv = _mm512_and_epi32(
-            _mm512_srlv_epi32(_mm512_set1_epi32(idx as i32), shifts),
-            three,
-        );
-        for ch in 0..3 {
-            let t = &tables[ch];
-            let pal = t
-                .values
-                .get_unchecked((mode << (2 * t.bits)) + keys[ch] as usize);
-            let pv = _mm512_broadcast_f32x4(_mm_loadu_ps(pal.as_ptr()));
-            let vals = _mm512_permutexvar_ps(iv, pv);
-            let ap = a[ch].as_mut_ptr();
-            _mm512_storeu_ps(ap, _mm512_fmadd_ps(vals, bv[ch], _mm512_loadu_ps(ap)));
-        }
-    }
-}
+type RowArgs<'a> = (
+    &'a [u8],
+    &'a [(u32, u32)],
+    [&'a [f32]; 3],
+    usize,
+    &'a [Bc1Table; 3],
+);
 
-/// A full BC1 row of tiles (8 block rows) on AVX-512: the block columns
-/// `cols` (byte offset of their 8 blocks, first matrix column), each times
-/// its 4 values of `b0`, into `acc`, with the 24 accumulators (8 block rows
-/// × 3 channels) held in registers for the whole row. The same operations
-/// in the same order as [`bc1_column_avx512`] column by column.
+/// A BC1 row of tiles of `BH` block rows on AVX-512: per block, the 16
+/// indices in one vector, and per channel one permute of the 4-entry
+/// palette and one fused multiply-add; each block column times its 4 values
+/// of `B0`, into `acc`, the `3 BH` accumulators held in registers for the
+/// whole row (24 of the 32 vector registers for a full row).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn bc1_row_avx512(
-    dense: &[u8],
-    cols: &[(u32, u32)],
-    b0: [&[f32]; 3],
-    n: usize,
-    tables: &[Bc1Table; 3],
+unsafe fn bc1_row_avx512<const BH: usize>(
+    (dense, cols, b0, n, tables): RowArgs,
     acc: &mut [[[f32; 16]; 3]],
 ) {
     use std::arch::x86_64::*;
     let shifts = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
     let three = _mm512_set1_epi32(3);
-    let mut a = [[_mm512_setzero_ps(); 3]; 8];
+    let mut a = [[_mm512_setzero_ps(); 3]; BH];
     for (k, row) in a.iter_mut().enumerate() {
         for (c, v) in row.iter_mut().enumerate() {
             *v = _mm512_loadu_ps(acc[k][c].as_ptr());
@@ -710,7 +675,7 @@ unsafe fn bc1_row_avx512(
             }
             _mm512_broadcast_f32x4(_mm_loadu_ps(q.as_ptr()))
         });
-        let col = dense.get_unchecked(off as usize..off as usize + 64);
+        let col = dense.get_unchecked(off as usize..off as usize + 8 * BH);
         for (k, row) in a.iter_mut().enumerate() {
             let blk = col.as_ptr().add(8 * k);
             let word = (blk as *const u64).read_unaligned();

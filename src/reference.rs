@@ -1,0 +1,168 @@
+//! An independent reference for indirect light: Monte Carlo path tracing on
+//! the original triangles, with no patches, form factors, transfer matrix
+//! or codec involved (DESIGN.md section 3, measure 4, in its in-project
+//! form; the Mitsuba 3 comparison of the benchmark issue is the external
+//! one). It estimates the indirect irradiance `H(x)` — the light arriving
+//! at `x` from surfaces, emitted or reflected, as `H = T · B0` defines it —
+//! at points of the real surfaces.
+//!
+//! From `x` with normal `n`, a cosine-distributed direction finds the
+//! nearest triangle `y_1`: the path adds `β (E_1 + ρ_1 D_1)` — its emission
+//! and its reflected direct light, `D` with a shadow ray to each light (the
+//! one light definition of [`crate::core::light`]) — then continues from
+//! `y_1` with `β ← β ρ_1`, and so on (the cosine pdf cancels the cosine and
+//! the `1/π` of a diffuse surface's radiance). A path ends at a back face
+//! (a surface emits and reflects only on its front, as the bake assumes),
+//! when it leaves the scene, or by Russian roulette once `β` falls below
+//! 1/8 (survival probability `8 β`, unbiased). Albedo and emission are the
+//! material's (`Kd` × the texture's mean, `Ke`), as the bake's patches.
+//! Seeded per point: the same inputs give the same numbers.
+
+use crate::core::direct::DirectLight;
+use crate::core::math::{add, dot, normalize, scale, tangent_basis, SplitMix64};
+use crate::core::scene::Scene;
+use crate::core::scene_config::Light;
+use rayon::prelude::*;
+
+/// Paths below this throughput play Russian roulette.
+const ROULETTE_BELOW: f64 = 0.125;
+
+/// The path tracer over one scene.
+pub struct PathTracer<'a> {
+    scene: &'a Scene,
+    direct: DirectLight,
+    far: f64,
+}
+
+/// An estimate and its standard error (per channel).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Estimate {
+    pub mean: [f64; 3],
+    pub std_error: [f64; 3],
+}
+
+impl<'a> PathTracer<'a> {
+    pub fn new(scene: &'a Scene) -> PathTracer<'a> {
+        let direct = DirectLight::new(scene);
+        let far = 4.0 * direct.far();
+        PathTracer { scene, direct, far }
+    }
+
+    /// The indirect irradiance at `x` (normal `n`) from `paths` paths.
+    pub fn indirect(
+        &self,
+        x: [f64; 3],
+        n: [f64; 3],
+        lights: &[Light],
+        paths: usize,
+        seed: u64,
+    ) -> Estimate {
+        let mut rng = SplitMix64::new(seed);
+        let (mut s, mut s2) = ([0.0f64; 3], [0.0f64; 3]);
+        for _ in 0..paths {
+            let v = self.path(x, n, lights, &mut rng);
+            for c in 0..3 {
+                s[c] += v[c];
+                s2[c] += v[c] * v[c];
+            }
+        }
+        let k = paths.max(1) as f64;
+        Estimate {
+            mean: s.map(|v| v / k),
+            std_error: std::array::from_fn(|c| {
+                let m = s[c] / k;
+                ((s2[c] / k - m * m).max(0.0) / k).sqrt()
+            }),
+        }
+    }
+
+    fn path(&self, x0: [f64; 3], n0: [f64; 3], lights: &[Light], rng: &mut SplitMix64) -> [f64; 3] {
+        let bvh = self.direct.bvh();
+        let offset = self.direct.offset();
+        let (mut x, mut n) = (x0, n0);
+        let mut beta = [1.0f64; 3];
+        let mut h = [0.0f64; 3];
+        for _ in 0..1000 {
+            let d = cosine_direction(n, rng);
+            let o = add(x, scale(n, offset));
+            let Some((k, t)) = bvh.closest_hit(o, scale(d, self.far)) else {
+                break;
+            };
+            let tri = bvh.order[k as usize] as usize;
+            let ng = self.scene.triangle_normal(tri);
+            if dot(ng, d) >= 0.0 {
+                break;
+            }
+            let y = add(o, scale(d, t * self.far));
+            let m = &self.scene.materials[self.scene.triangle_material[tri] as usize];
+            let dy = self.direct.at_points(&[(y, ng)], lights);
+            for c in 0..3 {
+                let rho = m.albedo[c] as f64;
+                h[c] += beta[c] * (m.emission[c] as f64 + rho * dy[c]);
+                beta[c] *= rho;
+            }
+            let bmax = beta.iter().cloned().fold(0.0, f64::max);
+            if bmax <= 0.0 {
+                break;
+            }
+            if bmax < ROULETTE_BELOW {
+                let survive = bmax / ROULETTE_BELOW;
+                if rng.uniform() >= survive {
+                    break;
+                }
+                beta = beta.map(|b| b / survive);
+            }
+            x = y;
+            n = ng;
+        }
+        h
+    }
+
+    /// The indirect irradiance averaged over each of `points` groups
+    /// (e.g. a patch's sample points), `paths` paths per point, in
+    /// parallel; group `g`'s seed is `seed + g`.
+    pub fn mean_over(
+        &self,
+        groups: &[Vec<([f64; 3], [f64; 3])>],
+        lights: &[Light],
+        paths: usize,
+        seed: u64,
+    ) -> Vec<Estimate> {
+        groups
+            .par_iter()
+            .enumerate()
+            .map(|(g, pts)| {
+                let mut e = Estimate::default();
+                let k = pts.len().max(1) as f64;
+                for (i, (x, n)) in pts.iter().enumerate() {
+                    let s = self.indirect(
+                        *x,
+                        *n,
+                        lights,
+                        paths,
+                        seed.wrapping_add((g as u64) << 20 | i as u64),
+                    );
+                    for c in 0..3 {
+                        e.mean[c] += s.mean[c] / k;
+                        e.std_error[c] += s.std_error[c] * s.std_error[c] / (k * k);
+                    }
+                }
+                e.std_error = e.std_error.map(f64::sqrt);
+                e
+            })
+            .collect()
+    }
+}
+
+/// A cosine-distributed unit direction around `n` (Malley's method).
+fn cosine_direction(n: [f64; 3], rng: &mut SplitMix64) -> [f64; 3] {
+    let (u1, u2) = (rng.uniform(), rng.uniform());
+    let r = u1.sqrt();
+    let phi = 2.0 * std::f64::consts::PI * u2;
+    let (t, b) = tangent_basis(normalize(n));
+    let z = (1.0 - u1).max(0.0).sqrt();
+    normalize(add(
+        add(scale(t, r * phi.cos()), scale(b, r * phi.sin())),
+        scale(n, z),
+    ))
+}
