@@ -5,7 +5,7 @@
 use anyhow::{bail, Context as _};
 use clap::{Args, Parser, Subcommand};
 use radiosity::bake::error::BakeError;
-use radiosity::bake::form_factor::FormFactorOptions;
+use radiosity::bake::form_factor::{FormFactorMethod, FormFactorOptions};
 use radiosity::bake::reorder::ReorderMethod;
 use radiosity::bake::transfer::{Bounces, TransferOptions};
 use radiosity::bake::voxelize::Resolution;
@@ -80,6 +80,30 @@ enum Command {
 
 #[derive(Subcommand)]
 enum BenchCommand {
+    /// A bake's patch irradiance against an independent Monte Carlo path
+    /// tracer on the original triangles (bias, relative RMS, the first
+    /// reflection and later bounces, form-factor row sums).
+    Accuracy {
+        /// The bake file.
+        bake: PathBuf,
+        /// The camera and lights (default: the scene's NAME.json).
+        #[arg(long, value_name = "FILE.json")]
+        camera_lights: Option<PathBuf>,
+        /// Paths per sample point.
+        #[arg(long, default_value_t = 256)]
+        paths: usize,
+        /// Sample points per patch (1..=16).
+        #[arg(long, default_value_t = 4)]
+        points: usize,
+        /// Also measure the first reflection (recomputes F).
+        #[arg(long)]
+        first_reflection: bool,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        device: DeviceArgs,
+    },
     /// The CPU run time's frame stage by stage (direct, gather with and
     /// without column skipping, unchanged frame, render), the gather's
     /// bandwidth against a triad measured in the same run, and classic
@@ -249,7 +273,14 @@ struct BakeArgs {
     /// `inf` for the converged limit (default: inf).
     #[arg(long, value_parser = parse_bounces)]
     bounces: Option<Bounces>,
-    /// Form-factor emitter samples per side (1..=16, default 4).
+    /// Form factors: rays (from the patches' real surfaces, the default) or
+    /// contour (contour integrals between patch squares).
+    #[arg(long, value_name = "METHOD")]
+    form_factors: Option<String>,
+    /// Rays per patch of the rays method (16..=1048576, default 4096).
+    #[arg(long, value_name = "N")]
+    ff_rays_per_patch: Option<u32>,
+    /// Form-factor emitter samples per side, contour method (1..=16, default 4).
     #[arg(long)]
     ff_samples: Option<u32>,
     /// Form-factor visibility rays per patch pair (1..=64, default 4).
@@ -308,6 +339,13 @@ impl BakeArgs {
             ComputeChoice::OpenCl(DeviceSelection::from_flag_or_env(self.device.device)?)
         };
         let mut form_factor = FormFactorOptions::default();
+        if let Some(m) = &self.form_factors {
+            form_factor.method = FormFactorMethod::parse(m)
+                .with_context(|| format!("--form-factors {m:?}: expected rays or contour"))?;
+        }
+        if let Some(r) = self.ff_rays_per_patch {
+            form_factor.rays_per_patch = r;
+        }
         if let Some(m) = self.ff_samples {
             form_factor.samples = m;
         }
@@ -367,6 +405,7 @@ fn flag_of(option: &str) -> Option<&'static str> {
         "reordering" | "greedy reordering passes" => "--reorder",
         "form-factor samples per side" => "--ff-samples",
         "form-factor rays per pair" => "--ff-rays",
+        "form-factor rays per patch" => "--ff-rays-per-patch",
         "bounces" => "--bounces",
         _ => return None,
     })
@@ -415,6 +454,34 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Render(args) => render(args),
         Command::Generate { name, output, list } => generate(name, output, list),
         Command::Bench { which } => match which {
+            BenchCommand::Accuracy {
+                bake,
+                camera_lights: cl,
+                paths,
+                points,
+                first_reflection,
+                json,
+                device,
+            } => {
+                use radiosity::bakefile::baked::{resolve_scene_path, Baked};
+                if paths == 0 {
+                    bail!("--paths must be at least 1");
+                }
+                let info = Baked::load(&bake)?.info;
+                let config = camera_lights(cl, &resolve_scene_path(&bake, &info.scene))?;
+                let sel = if first_reflection {
+                    Some(DeviceSelection::from_flag_or_env(device.device)?)
+                } else {
+                    None
+                };
+                let (report, text) = bench::accuracy::run(&bake, &config, paths, points, sel)?;
+                if json {
+                    println!("{}", serde_json::to_string_pretty(&report)?);
+                } else {
+                    print!("{text}");
+                }
+                Ok(())
+            }
             BenchCommand::Frame {
                 bake,
                 camera_lights,

@@ -48,19 +48,22 @@ impl<'a> PathTracer<'a> {
         PathTracer { scene, direct, far }
     }
 
-    /// The indirect irradiance at `x` (normal `n`) from `paths` paths.
+    /// The indirect irradiance at `x` (normal `n`) from `paths` paths,
+    /// after at most `bounces` reflections (`None`: all; 1: the first
+    /// reflection of direct light and the emission arriving directly).
     pub fn indirect(
         &self,
         x: [f64; 3],
         n: [f64; 3],
         lights: &[Light],
         paths: usize,
+        bounces: Option<u32>,
         seed: u64,
     ) -> Estimate {
         let mut rng = SplitMix64::new(seed);
         let (mut s, mut s2) = ([0.0f64; 3], [0.0f64; 3]);
         for _ in 0..paths {
-            let v = self.path(x, n, lights, &mut rng);
+            let v = self.path(x, n, lights, bounces.unwrap_or(u32::MAX), &mut rng);
             for c in 0..3 {
                 s[c] += v[c];
                 s2[c] += v[c] * v[c];
@@ -76,13 +79,20 @@ impl<'a> PathTracer<'a> {
         }
     }
 
-    fn path(&self, x0: [f64; 3], n0: [f64; 3], lights: &[Light], rng: &mut SplitMix64) -> [f64; 3] {
+    fn path(
+        &self,
+        x0: [f64; 3],
+        n0: [f64; 3],
+        lights: &[Light],
+        bounces: u32,
+        rng: &mut SplitMix64,
+    ) -> [f64; 3] {
         let bvh = self.direct.bvh();
         let offset = self.direct.offset();
         let (mut x, mut n) = (x0, n0);
         let mut beta = [1.0f64; 3];
         let mut h = [0.0f64; 3];
-        for _ in 0..1000 {
+        for _ in 0..bounces.min(1000) {
             let d = cosine_direction(n, rng);
             let o = add(x, scale(n, offset));
             let Some((k, t)) = bvh.closest_hit(o, scale(d, self.far)) else {
@@ -126,6 +136,7 @@ impl<'a> PathTracer<'a> {
         groups: &[Vec<([f64; 3], [f64; 3])>],
         lights: &[Light],
         paths: usize,
+        bounces: Option<u32>,
         seed: u64,
     ) -> Vec<Estimate> {
         groups
@@ -140,6 +151,7 @@ impl<'a> PathTracer<'a> {
                         *n,
                         lights,
                         paths,
+                        bounces,
                         seed.wrapping_add((g as u64) << 20 | i as u64),
                     );
                     for c in 0..3 {
@@ -165,4 +177,26 @@ fn cosine_direction(n: [f64; 3], rng: &mut SplitMix64) -> [f64; 3] {
         add(scale(t, r * phi.cos()), scale(b, r * phi.sin())),
         scale(n, z),
     ))
+}
+
+impl PathTracer<'_> {
+    /// The fraction of cosine-distributed directions from `x` (normal `n`)
+    /// that meet a front face: the share of the real hemisphere a form
+    /// factor row can sum to.
+    pub fn front_fraction(&self, x: [f64; 3], n: [f64; 3], rays: usize, seed: u64) -> f64 {
+        let bvh = self.direct.bvh();
+        let o = add(x, scale(n, self.direct.offset()));
+        let mut rng = SplitMix64::new(seed);
+        let mut hits = 0usize;
+        for _ in 0..rays {
+            let d = cosine_direction(n, &mut rng);
+            if let Some((k, _)) = bvh.closest_hit(o, scale(d, self.far)) {
+                let tri = bvh.order[k as usize] as usize;
+                if dot(self.scene.triangle_normal(tri), d) < 0.0 {
+                    hits += 1;
+                }
+            }
+        }
+        hits as f64 / rays.max(1) as f64
+    }
 }

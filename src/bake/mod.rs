@@ -18,6 +18,7 @@ pub mod export;
 pub mod form_factor;
 pub mod gemm;
 pub mod mesh_map;
+pub mod pieces;
 pub mod preview;
 pub mod reorder;
 pub mod report;
@@ -193,6 +194,8 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
             Resolution::VoxelSize(_) => None,
         },
         voxel_size: vox.stats.voxel_size,
+        ff_method: config.form_factor.method.name().into(),
+        ff_rays_per_patch: config.form_factor.rays_per_patch,
         ff_samples: config.form_factor.samples,
         ff_rays: config.form_factor.rays,
         ff_quadrature_tol: config.form_factor.quadrature_tol,
@@ -341,10 +344,9 @@ pub fn transfer_stages(
     ));
     let t = Instant::now();
     let pb = bar("form factors");
-    let ff = form_factor::form_factors(
+    let ff = form_factor::of_voxelization(
         &scene,
-        &vox.patches,
-        &vox.grid,
+        &vox,
         &config.form_factor,
         backend,
         &mut |done, total| {

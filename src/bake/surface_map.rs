@@ -31,14 +31,14 @@
 //! Both are counted, with their area.
 
 use super::error::BakeError;
-use super::voxelize::{grid_coords, Voxelization};
+use super::pieces::{self, PieceGeo};
+use super::voxelize::Voxelization;
 use crate::bakefile::surface::{
     offset_slot, MapPiece, PatchSamples, SurfaceMap, NONE, OFFSETS, PIECE_SUBSTITUTE,
     SAMPLES_PER_PATCH,
 };
 use crate::core::bvh::Bvh;
-use crate::core::math::{add, cross, dot, norm, scale, sub};
-use crate::core::patch::piece_polygon;
+use crate::core::math::{add, dot, norm, scale, sub};
 use crate::core::patch::{Direction, Grid};
 use crate::core::scene::Scene;
 use rayon::prelude::*;
@@ -82,14 +82,6 @@ pub struct SurfaceMapStats {
 /// centroid fallback filled some.
 type Samples = (Vec<([f64; 3], [f64; 3])>, bool);
 
-/// One piece with its geometry.
-struct PieceGeo {
-    poly: Vec<[f64; 3]>,
-    normal: [f64; 3],
-    area: f64,
-    centroid: [f64; 3],
-}
-
 /// Builds the surface map and the sample points. `patch_index_of[i]` is the
 /// matrix (file-order) index of voxelization patch `i`, or `None` when the
 /// form-factor stage removed it; `n` is the matrix size.
@@ -112,22 +104,7 @@ pub fn build(
         pieces: vox.pieces.len() as u64,
         ..Default::default()
     };
-    let coords = grid_coords(scene, &grid);
-    let geo: Vec<PieceGeo> = vox
-        .pieces
-        .par_iter()
-        .map(|p| {
-            let poly = piece_polygon(&grid, &coords[p.tri as usize], p.voxel);
-            let normal = scene.triangle_normal(p.tri as usize);
-            let (area, centroid) = polygon_area_centroid(&poly, normal);
-            PieceGeo {
-                poly,
-                normal,
-                area,
-                centroid,
-            }
-        })
-        .collect();
+    let geo = pieces::geometry(scene, vox);
 
     // Matrix patch -> voxelization patch, and its pieces.
     let mut vox_of = vec![usize::MAX; n];
@@ -295,25 +272,6 @@ pub fn build(
     Ok((map, samples, stats))
 }
 
-/// Area and centroid of a planar polygon with normal `n`.
-fn polygon_area_centroid(poly: &[[f64; 3]], n: [f64; 3]) -> (f64, [f64; 3]) {
-    if poly.len() < 3 {
-        return (0.0, poly.first().copied().unwrap_or([0.0; 3]));
-    }
-    let (mut a2, mut acc) = (0.0, [0.0; 3]);
-    for i in 1..poly.len() - 1 {
-        let s = dot(cross(sub(poly[i], poly[0]), sub(poly[i + 1], poly[0])), n);
-        a2 += s;
-        for q in 0..3 {
-            acc[q] += s * (poly[0][q] + poly[i][q] + poly[i + 1][q]);
-        }
-    }
-    if !(a2.abs() > 0.0) {
-        return (0.0, poly[0]);
-    }
-    (0.5 * a2.abs(), acc.map(|x| x / (3.0 * a2)))
-}
-
 /// The voxel `v` if inside the grid.
 fn in_grid(grid: &Grid, v: [i64; 3]) -> Option<[u32; 3]> {
     (0..3)
@@ -435,28 +393,18 @@ struct Visibility<'a> {
 }
 
 impl Visibility<'_> {
-    /// Whether the segment between `a` and `b` (each lifted along its
-    /// normal) crosses no surface other than the ends' own (module doc).
+    /// Whether the segment between `a` and `b` crosses no surface other
+    /// than the ends' own (module doc; [`Bvh::surface_segment_clear`]).
     fn clear(&self, a: [f64; 3], na: [f64; 3], b: [f64; 3], nb: [f64; 3], dir: Direction) -> bool {
-        let delta = RAY_OFFSET * self.size;
-        let shift = self.bvh.shift;
-        let o = sub(add(a, scale(na, delta)), shift);
-        let e = sub(add(b, scale(nb, delta)), shift);
-        let d = sub(e, o);
-        let len = norm(d);
-        if !(len > 2.0 * delta) {
-            return true;
-        }
-        let own = 3f64.sqrt() * self.size;
-        let dir = dir as u32;
-        self.bvh
-            .any_hit(o, d, |k, t| {
-                let (s, e) = (t * len, (1.0 - t) * len);
-                s <= 2.0 * delta
-                    || e <= 2.0 * delta
-                    || (self.bvh.tris[k as usize].dir == dir && (s <= own || e <= own))
-            })
-            .is_none()
+        self.bvh.surface_segment_clear(
+            a,
+            na,
+            b,
+            nb,
+            RAY_OFFSET * self.size,
+            3f64.sqrt() * self.size,
+            dir as u32,
+        )
     }
 }
 

@@ -49,6 +49,7 @@
 //! triangles per voxel), never to the grid volume.
 
 use crate::bake::error::BakeError;
+use crate::core::bvh::Bvh;
 use crate::core::compute::{round_up, Access, Backend, Gpu};
 use crate::core::math::{cross, dot, sub};
 use crate::core::patch::{clip_to_unit_box, Direction, Grid, Patch};
@@ -57,6 +58,28 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::time::Instant;
+
+/// Lift of the connectivity segments' ends along their normals, in voxel
+/// sizes: 8× the f32 rounding of BVH coordinates relative to the grid
+/// centre (as the mesh map's and the surface map's segments).
+pub const CONNECT_LIFT: f64 = 1e-3;
+
+/// Reach, in voxel sizes, within which a triangle facing the pieces'
+/// direction does not separate them (their own surface, curving across the
+/// chord): a voxel's diagonal.
+pub const CONNECT_OWN: f64 = 1.732_050_807_568_877_2;
+
+/// Nearest pieces (or pairs of pieces) tested for connectivity.
+pub const NEAREST: usize = 4;
+
+/// Components smaller than this (in voxel faces) are relief, not separate
+/// surfaces, when a segment lifted [`RELIEF_LIFT`] voxels joins them to
+/// another component of their voxel and direction.
+pub const SMALL_COMPONENT: f64 = 0.1;
+
+/// The lift, in voxel sizes, under which relief does not separate small
+/// components (module doc, "Connected surfaces").
+pub const RELIEF_LIFT: f64 = 0.25;
 
 /// The kernel source, embedded.
 pub const KERNEL_SOURCE: &str = include_str!("../../kernels/voxelize.cl");
@@ -121,6 +144,9 @@ pub struct VoxelStats {
     pub patches_per_direction: [u64; 6],
     /// Voxel groups merged into their neighbour's (staircases).
     pub merged_groups: u64,
+    /// Extra patches from voxel groups split where a surface separates
+    /// their pieces (the two sides of a thin wall's floor, stacked floors).
+    pub split_groups: u64,
     /// Voxel groups facing a surface that looks back from the neighbour
     /// voxel: kept as patches (they receive light), counted.
     pub facing_back_groups: u64,
@@ -538,10 +564,19 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
     kept.sort_unstable();
     stats.pieces = kept.len() as u64;
 
-    // Voxel groups in sorted order, and which directions each voxel holds.
-    let mut groups: Vec<((u64, Direction), [u32; 3], Acc)> = Vec::new();
+    // Which directions each voxel holds.
     let mut holds: HashMap<u64, u8> = HashMap::new();
-    for &(key, dir, tri, i) in &kept {
+    for &(key, dir, _, _) in &kept {
+        *holds.entry(key).or_default() |= 1 << dir as u8;
+    }
+    stats.occupied_voxels = holds.len() as u64;
+
+    // The pieces' sums and representative points.
+    let shift = grid.centre();
+    let bvh = Bvh::build(&scene.positions, &scene.triangles, shift);
+    let lift = CONNECT_LIFT * grid.size;
+    let own = CONNECT_OWN * grid.size;
+    let piece_acc = |i: usize, tri: u32| -> (Acc, [f64; 3]) {
         let p = &pieces[i];
         let material = &scene.materials[scene.triangle_material[tri as usize] as usize];
         let n = normals[tri as usize];
@@ -561,81 +596,231 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
                 acc.emission_normal[c][q] = a * n[q] * material.emission[c] as f64;
             }
         }
-        match groups.last_mut() {
-            Some((k, _, g)) if *k == (key, dir) => g.add(&acc),
-            _ => groups.push(((key, dir), p.voxel, acc)),
-        }
-        *holds.entry(key).or_default() |= 1 << dir as u8;
-    }
-    stats.occupied_voxels = holds.len() as u64;
+        (acc, world)
+    };
 
-    // Neighbour rule (module doc): follow `d` while the neighbour holds
-    // geometry facing `d`; stop at an open neighbour (a patch), at one facing
-    // back (covered), or at one holding only perpendicular geometry (a patch).
-    let mut targets: BTreeMap<(u64, Direction), ([u32; 3], Acc)> = BTreeMap::new();
-    // The target of each group (None: covered), in group order.
-    let mut group_target: Vec<Option<(u64, Direction)>> = Vec::with_capacity(groups.len());
-    for ((key, dir), voxel, acc) in &groups {
-        let mut at = *voxel;
-        let mut covered = false;
-        let (same, back) = (1u8 << *dir as u8, 1u8 << dir.opposite() as u8);
-        while let Some(nb) = grid.neighbour(at, *dir) {
-            match holds.get(&grid.key(nb)) {
-                Some(mask) if mask & same != 0 => at = nb,
-                Some(mask) if mask & back != 0 => {
-                    // A surface looks back from less than two voxels away
-                    // (a column, a thin wall's other side, a box on the
-                    // floor): the group still receives and reflects the
-                    // light that reaches it, so it stays a patch, counted.
-                    covered = false;
-                    stats.facing_back_groups += 1;
-                    break;
+    // Components: the pieces of one voxel facing one way, split where a
+    // surface separates them (module doc, "Connected surfaces"): a piece
+    // joins every component holding one of its NEAREST nearest pieces that
+    // it is connected to (so chains of pieces along a curved or bumpy
+    // surface stay one component).
+    struct Comp {
+        key: u64,
+        dir: Direction,
+        voxel: [u32; 3],
+        /// Index among the components of its (voxel, direction).
+        local: u32,
+        acc: Acc,
+        /// Its pieces' centroids and normals.
+        members: Vec<([f64; 3], [f64; 3])>,
+    }
+    let mut comps: Vec<Comp> = Vec::new();
+    let mut comps_at: HashMap<(u64, Direction), Vec<usize>> = HashMap::new();
+    let mut comp_of_kept = vec![0usize; kept.len()];
+    let mut a = 0usize;
+    while a < kept.len() {
+        let (key, dir) = (kept[a].0, kept[a].1);
+        let mut b = a;
+        while b < kept.len() && (kept[b].0, kept[b].1) == (key, dir) {
+            b += 1;
+        }
+        let run: Vec<(Acc, [f64; 3], [f64; 3])> = (a..b)
+            .map(|idx| {
+                let (_, _, tri, i) = kept[idx];
+                let (acc, c) = piece_acc(i, tri);
+                (acc, c, normals[tri as usize])
+            })
+            .collect();
+        // Union-find over the run.
+        let mut parent: Vec<usize> = (0..run.len()).collect();
+        fn root(parent: &mut [usize], mut x: usize) -> usize {
+            while parent[x] != x {
+                parent[x] = parent[parent[x]];
+                x = parent[x];
+            }
+            x
+        }
+        for p in 1..run.len() {
+            let mut near: Vec<(f64, usize)> = (0..p)
+                .map(|q| (crate::core::math::norm(sub(run[p].1, run[q].1)), q))
+                .collect();
+            near.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+            for &(_, q) in near.iter().take(NEAREST) {
+                let (rp, rq) = (root(&mut parent, p), root(&mut parent, q));
+                if rp == rq {
+                    continue;
                 }
-                _ => break,
+                if bvh.surface_segment_clear(
+                    run[q].1, run[q].2, run[p].1, run[p].2, lift, own, dir as u32,
+                ) {
+                    parent[rp.max(rq)] = rp.min(rq);
+                }
             }
         }
-        if covered {
-            stats.covered_groups += 1;
-            stats.covered_area += acc.area;
-            stats.covered_area_per_direction[*dir as usize] += acc.area;
-            group_target.push(None);
-            continue;
+        // Small components (relief: the faces of a moulding's steps, bits
+        // of ornament) join the nearest component they reach over a lift of
+        // RELIEF_LIFT voxels: relief lower than that does not separate, a
+        // wall or a floor above does.
+        let areas: Vec<f64> = {
+            let mut s = vec![0.0; run.len()];
+            for k in 0..run.len() {
+                let r = root(&mut parent, k);
+                s[r] += run[k].0.area;
+            }
+            s
+        };
+        let small = SMALL_COMPONENT * s2;
+        for p in 0..run.len() {
+            let rp = root(&mut parent, p);
+            if areas[rp] >= small {
+                continue;
+            }
+            let mut near: Vec<(f64, usize)> = (0..run.len())
+                .filter(|&q| root(&mut parent, q) != rp)
+                .map(|q| (crate::core::math::norm(sub(run[p].1, run[q].1)), q))
+                .collect();
+            near.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+            for &(_, q) in near.iter().take(NEAREST) {
+                let (rp, rq) = (root(&mut parent, p), root(&mut parent, q));
+                if rp != rq
+                    && bvh.surface_segment_clear(
+                        run[q].1,
+                        run[q].2,
+                        run[p].1,
+                        run[p].2,
+                        RELIEF_LIFT * grid.size,
+                        own,
+                        dir as u32,
+                    )
+                {
+                    parent[rp.max(rq)] = rp.min(rq);
+                    break;
+                }
+            }
         }
-        let target = (grid.key(at), *dir);
-        group_target.push(Some(target));
-        if target != (*key, *dir) {
+        let first = comps.len();
+        let mut comp_of_root: HashMap<usize, usize> = HashMap::new();
+        for (k, piece) in run.iter().enumerate() {
+            let r = root(&mut parent, k);
+            let c = *comp_of_root.entry(r).or_insert_with(|| {
+                comps.push(Comp {
+                    key,
+                    dir,
+                    voxel: pieces[kept[a + k].3].voxel,
+                    local: (comps.len() - first) as u32,
+                    acc: Acc::default(),
+                    members: Vec::new(),
+                });
+                comps_at
+                    .entry((key, dir))
+                    .or_default()
+                    .push(comps.len() - 1);
+                comps.len() - 1
+            });
+            comps[c].acc.add(&piece.0);
+            comps[c].members.push((piece.1, piece.2));
+            comp_of_kept[a + k] = c;
+        }
+        stats.split_groups += (comps.len() - first - 1) as u64;
+        a = b;
+    }
+    // Whether two components are connected: their NEAREST closest pairs of
+    // pieces, tested until one is.
+    let connected = |x: &Comp, y: &Comp| -> bool {
+        let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+        for (i, p) in x.members.iter().enumerate() {
+            for (j, q) in y.members.iter().enumerate() {
+                pairs.push((crate::core::math::norm(sub(p.0, q.0)), i, j));
+            }
+        }
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0).then((a.1, a.2).cmp(&(b.1, b.2))));
+        pairs.iter().take(NEAREST).any(|&(_, i, j)| {
+            let (p, q) = (x.members[i], y.members[j]);
+            bvh.surface_segment_clear(p.0, p.1, q.0, q.1, lift, own, x.dir as u32)
+        })
+    };
+
+    // Neighbour rule (module doc): a component continues into the
+    // neighbour voxel along its direction when a component there facing the
+    // same way is connected to it (a staircase of voxels along a tilted or
+    // curved surface); the chain's last component is the patch.
+    let mut target: Vec<usize> = (0..comps.len()).collect();
+    let mut resolved = vec![false; comps.len()];
+    for c in 0..comps.len() {
+        let mut chain = vec![c];
+        let mut at = c;
+        loop {
+            if resolved[at] {
+                at = target[at];
+                break;
+            }
+            let Some(nb) = grid.neighbour(comps[at].voxel, comps[at].dir) else {
+                break;
+            };
+            let next = comps_at
+                .get(&(grid.key(nb), comps[at].dir))
+                .and_then(|cands| {
+                    cands
+                        .iter()
+                        .copied()
+                        .find(|&k| connected(&comps[at], &comps[k]))
+                });
+            match next {
+                Some(k) => {
+                    chain.push(k);
+                    at = k;
+                }
+                None => {
+                    let back = 1u8 << comps[at].dir.opposite() as u8;
+                    if holds.get(&grid.key(nb)).is_some_and(|m| m & back != 0) {
+                        // A surface looks back from less than two voxels
+                        // away (a column, a thin wall's other side, a box
+                        // on the floor): the component still receives and
+                        // reflects light, so it stays a patch, counted.
+                        stats.facing_back_groups += 1;
+                    }
+                    break;
+                }
+            }
+        }
+        for &k in &chain {
+            target[k] = at;
+            resolved[k] = true;
+        }
+    }
+    let mut targets: BTreeMap<(u64, Direction, u32), ([u32; 3], Acc)> = BTreeMap::new();
+    for (k, comp) in comps.iter().enumerate() {
+        let tgt = &comps[target[k]];
+        if target[k] != k {
             stats.merged_groups += 1;
         }
         targets
-            .entry(target)
-            .or_insert((at, Acc::default()))
+            .entry((tgt.key, tgt.dir, tgt.local))
+            .or_insert((tgt.voxel, Acc::default()))
             .1
-            .add(acc);
+            .add(&comp.acc);
     }
-
-    let patch_of: HashMap<(u64, Direction), u32> = targets
+    let patch_of: HashMap<(u64, Direction, u32), u32> = targets
         .keys()
         .enumerate()
         .map(|(i, k)| (*k, i as u32))
         .collect();
-    // Pieces in group order (the order of `kept`), with their owner.
-    let mut pieces = Vec::with_capacity(kept.len());
-    let mut g = 0usize;
-    let mut current = None;
-    for &(key, dir, tri, i) in &kept {
-        if current.is_some() && current != Some((key, dir)) {
-            g += 1;
-        }
-        current = Some((key, dir));
-        pieces.push(OwnedPiece {
-            tri,
-            voxel: pieces_in[i].voxel,
-            patch: group_target[g].map(|k| patch_of[&k]),
-        });
-    }
+    // Pieces with their owner.
+    let mut pieces: Vec<OwnedPiece> = kept
+        .iter()
+        .enumerate()
+        .map(|(idx, &(_, _, tri, i))| {
+            let t = &comps[target[comp_of_kept[idx]]];
+            OwnedPiece {
+                tri,
+                voxel: pieces_in[i].voxel,
+                patch: Some(patch_of[&(t.key, t.dir, t.local)]),
+            }
+        })
+        .collect();
     pieces.sort_unstable_by_key(|p| (p.tri, grid.key(p.voxel)));
     let mut patches = Vec::with_capacity(targets.len());
-    for ((_, dir), (voxel, acc)) in targets {
+    for ((_, dir, _), (voxel, acc)) in targets {
         let len = dot(acc.area_normal, acc.area_normal).sqrt();
         if !(len > 0.0) {
             // Pieces facing one direction cannot cancel (their normals'

@@ -61,8 +61,12 @@ pub struct OptionsRecord {
     pub target_patches: Option<u64>,
     /// The voxel edge length used (scene units).
     pub voxel_size: f64,
+    /// The form-factor method (`rays` or `contour`) and the rays per patch
+    /// of the rays method.
+    pub ff_method: String,
+    pub ff_rays_per_patch: u32,
     /// Form-factor emitter samples per side, visibility rays per pair, and
-    /// the quadrature's target relative error.
+    /// the quadrature's target relative error (contour method).
     pub ff_samples: u32,
     pub ff_rays: u32,
     pub ff_quadrature_tol: f64,

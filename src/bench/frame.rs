@@ -21,7 +21,7 @@
 //!   Jacobi-iterated in f64 until the update is below 1e-10 of `H`.
 
 use super::memory_bandwidth_triad;
-use crate::bake::form_factor::{form_factors, FormFactorOptions};
+use crate::bake::form_factor::{of_voxelization, FormFactorOptions};
 use crate::bake::voxelize::voxelize_at;
 use crate::bakefile::baked::{resolve_scene_path, Baked};
 use crate::core::compute::{Backend, DeviceSelection, Gpu};
@@ -356,19 +356,15 @@ pub fn run(
     let backend = Backend::OpenCl(&gpu);
     let vox = voxelize_at(&rt.scene, rt.baked.options.voxel_size, &backend)?;
     let ffo = FormFactorOptions {
+        method: crate::bake::form_factor::FormFactorMethod::parse(&rt.baked.options.ff_method)
+            .context("the bake's form-factor method")?,
+        rays_per_patch: rt.baked.options.ff_rays_per_patch,
         samples: rt.baked.options.ff_samples,
         rays: rt.baked.options.ff_rays,
         quadrature_tol: rt.baked.options.ff_quadrature_tol,
         ..FormFactorOptions::default()
     };
-    let ff = form_factors(
-        &rt.scene,
-        &vox.patches,
-        &vox.grid,
-        &ffo,
-        &backend,
-        &mut |_, _| {},
-    )?;
+    let ff = of_voxelization(&rt.scene, &vox, &ffo, &backend, &mut |_, _| {})?;
     anyhow::ensure!(
         ff.n == n,
         "the form factors recomputed from the bake's options keep {} patches, the bake {n}",

@@ -4,6 +4,7 @@
 //! bandwidth. Timings on a shared 2-core machine are noisy; compare the
 //! ratios within one run.
 
+pub mod accuracy;
 pub mod compression;
 pub mod form_factor;
 pub mod frame;

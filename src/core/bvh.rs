@@ -54,6 +54,12 @@ pub struct Square {
     pub direction: Direction,
 }
 
+/// How far behind a point's tangent plane (as the cosine with the normal) a
+/// segment may leave or reach it in [`Bvh::surface_segment_clear`]: a 24-gon
+/// column's adjacent facets meet at 15°, a chord between them dips 7.5°
+/// behind each (cosine 0.13).
+pub const SIDE_SLACK: f64 = 0.25;
+
 /// Bins per axis of the SAH sweep.
 pub const BINS: usize = 16;
 /// Most triangles in a leaf (more only when their centroids coincide).
@@ -526,6 +532,52 @@ impl Bvh {
             }
         }
         best
+    }
+}
+
+impl Bvh {
+    /// Whether two points on surfaces, `a` and `b` (world coordinates,
+    /// unit normals `na`, `nb`), lie on one connected stretch of surface
+    /// that nothing separates: the segment between them leaves `a` and
+    /// reaches `b` on their front sides (within [`SIDE_SLACK`] of the
+    /// tangent plane, so gently convex surfaces pass: a chord dips just
+    /// behind them), and, with each end lifted `lift` along its normal, it
+    /// crosses no triangle — ignoring hits within `2 lift` of either end
+    /// and hits on triangles facing `dir` (a [`Direction`] as `u32`) within
+    /// `own` of either end: the surfaces the points lie on, which can curve
+    /// across the chord. A wall between them, of any thickness, blocks, and
+    /// a surface reached from behind (the floor above a floor) is not
+    /// connected.
+    #[allow(clippy::too_many_arguments)]
+    pub fn surface_segment_clear(
+        &self,
+        a: [f64; 3],
+        na: [f64; 3],
+        b: [f64; 3],
+        nb: [f64; 3],
+        lift: f64,
+        own: f64,
+        dir: u32,
+    ) -> bool {
+        let lifted = |p: [f64; 3], n: [f64; 3]| -> [f64; 3] {
+            std::array::from_fn(|k| p[k] + lift * n[k] - self.shift[k])
+        };
+        let (o, e) = (lifted(a, na), lifted(b, nb));
+        let d = sub(e, o);
+        let len = dot(d, d).sqrt();
+        if !(len > 2.0 * lift) {
+            return true;
+        }
+        if dot(d, na) < -SIDE_SLACK * len || dot(d, nb) > SIDE_SLACK * len {
+            return false;
+        }
+        self.any_hit(o, d, |k, t| {
+            let (s, e) = (t * len, (1.0 - t) * len);
+            s <= 2.0 * lift
+                || e <= 2.0 * lift
+                || (self.tris[k as usize].dir == dir && (s <= own || e <= own))
+        })
+        .is_none()
     }
 }
 

@@ -127,6 +127,12 @@ impl Grid {
         std::array::from_fn(|a| p[a] as f64 / self.size - self.origin[a] / self.size)
     }
 
+    /// The grid's centre: coordinates relative to it have the smallest f32
+    /// rounding error (the BVH's shift point).
+    pub fn centre(&self) -> [f64; 3] {
+        std::array::from_fn(|k| self.origin[k] + 0.5 * self.size * self.dims[k] as f64)
+    }
+
     /// Linear key of a voxel.
     pub fn key(&self, v: [u32; 3]) -> u64 {
         v[0] as u64 + self.dims[0] as u64 * (v[1] as u64 + self.dims[1] as u64 * v[2] as u64)

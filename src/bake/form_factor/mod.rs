@@ -170,6 +170,7 @@ use std::path::Path;
 use std::time::Instant;
 
 mod cpu;
+pub mod rays;
 use cpu::P64;
 pub use cpu::{cpu_pair, lattice, lattice_offsets};
 
@@ -245,9 +246,44 @@ pub struct ClPatch {
     pub pad2: f32,
 }
 
+/// How form factors are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum FormFactorMethod {
+    /// Rays from the patches' real triangle pieces ([`rays`]): the default.
+    Rays,
+    /// Contour integrals between patch squares with ray visibility (this
+    /// module's doc): exact for planar squares, the analytic view factors'
+    /// method.
+    Contour,
+}
+
+impl FormFactorMethod {
+    pub fn name(self) -> &'static str {
+        match self {
+            FormFactorMethod::Rays => "rays",
+            FormFactorMethod::Contour => "contour",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<FormFactorMethod> {
+        match s {
+            "rays" => Some(FormFactorMethod::Rays),
+            "contour" => Some(FormFactorMethod::Contour),
+            _ => None,
+        }
+    }
+}
+
+/// Most rays per patch of the rays method.
+pub const MAX_RAYS_PER_PATCH: u32 = 1 << 20;
+
 /// Options of the stage.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FormFactorOptions {
+    /// The method (default: rays from the real surfaces).
+    pub method: FormFactorMethod,
+    /// Rays per patch of the rays method, 16..=2^20. Default 4096.
+    pub rays_per_patch: u32,
     /// Emitter samples per side for near pairs (an `m × m` midpoint grid,
     /// `m ≤ samples`), 1..=16. Default 4.
     pub samples: u32,
@@ -269,6 +305,8 @@ pub struct FormFactorOptions {
 impl Default for FormFactorOptions {
     fn default() -> Self {
         Self {
+            method: FormFactorMethod::Rays,
+            rays_per_patch: 4096,
             samples: 4,
             rays: 4,
             quadrature_tol: 1e-3,
@@ -281,6 +319,13 @@ impl Default for FormFactorOptions {
 impl FormFactorOptions {
     /// Checks the ranges above.
     pub fn validate(&self) -> Result<(), BakeError> {
+        if !(16..=MAX_RAYS_PER_PATCH).contains(&self.rays_per_patch) {
+            return Err(BakeError::InvalidOption {
+                option: "form-factor rays per patch",
+                value: self.rays_per_patch.to_string(),
+                expected: format!("16..={MAX_RAYS_PER_PATCH}"),
+            });
+        }
         if !(1..=MAX_SAMPLES).contains(&self.samples) {
             return Err(BakeError::InvalidOption {
                 option: "form-factor samples per side",
@@ -362,11 +407,59 @@ pub struct FormFactorStats {
     /// `pairs_total / seconds_pairs` and `rays_cast / seconds_pairs`.
     pub pairs_per_second: f64,
     pub rays_per_second: f64,
+    /// Rays method: rays that left the scene, met a back face, or met a
+    /// piece with no patch.
+    pub rays_escaped: u64,
+    pub rays_back_face: u64,
+    pub rays_unowned: u64,
+    /// Rays method: the area-weighted fraction of the real hemisphere that
+    /// meets front faces, and the area-weighted mean row sum of `F`.
+    pub front_fraction: f64,
+    pub row_sum_mean: f64,
+    /// Rays method: symmetric Sinkhorn iterations and the largest relative
+    /// row-sum error they left.
+    pub sinkhorn_iterations: u64,
+    pub sinkhorn_residual: f64,
 }
 
 impl fmt::Display for FormFactorStats {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(f, "form factors on {}", self.backend)?;
+        if self
+            .options
+            .as_ref()
+            .is_some_and(|o| o.method == FormFactorMethod::Rays)
+        {
+            writeln!(
+                f,
+                "  patches: {} in, {} kept, {} removed (see nothing)",
+                self.patches, self.kept, self.removed_patches
+            )?;
+            writeln!(
+                f,
+                "  rays: {} cast ({:.3e} rays/s): {} left the scene, {} met a back face, {} a piece with no patch",
+                self.rays_cast,
+                self.rays_per_second,
+                self.rays_escaped,
+                self.rays_back_face,
+                self.rays_unowned
+            )?;
+            writeln!(
+                f,
+                "  row sums (area-weighted mean) {:.4}; real hemisphere meeting front faces {:.4}; max row sum {:.7}; symmetric Sinkhorn {} iterations (residual {:.1e}); max reciprocity error {:.2e}",
+                self.row_sum_mean,
+                self.front_fraction,
+                self.max_row_sum,
+                self.sinkhorn_iterations,
+                self.sinkhorn_residual,
+                self.max_reciprocity_error
+            )?;
+            return writeln!(
+                f,
+                "  time: {:.3} s total, {:.3} s rays, {:.3} s post",
+                self.seconds_total, self.seconds_pairs, self.seconds_post
+            );
+        }
         writeln!(
             f,
             "  patches: {} in, {} kept, {} removed (see nothing)",
@@ -964,6 +1057,25 @@ pub fn form_factors(
     stats.rays_per_second = stats.rays_cast as f64 / seconds_pairs.max(1e-9);
     out.stats = stats;
     Ok(out)
+}
+
+/// The form factors of a voxelization's patches by `options.method`: rays
+/// from the real surfaces (CPU), or contour integrals between the patch
+/// squares on `backend` ([`form_factors`]).
+pub fn of_voxelization(
+    scene: &Scene,
+    vox: &crate::bake::voxelize::Voxelization,
+    options: &FormFactorOptions,
+    backend: &Backend,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<FormFactors, BakeError> {
+    options.validate()?;
+    match options.method {
+        FormFactorMethod::Rays => rays::form_factors(scene, vox, options, progress),
+        FormFactorMethod::Contour => {
+            form_factors(scene, &vox.patches, &vox.grid, options, backend, progress)
+        }
+    }
 }
 
 /// Tile edge of the blocked transposing passes.

@@ -1,0 +1,397 @@
+//! Form factors from the real surfaces (the default method): a patch stands
+//! for pieces of real triangles, and its form factors describe how those
+//! pieces exchange light, not how a square in their mean plane (often
+//! buried in relief, or sticking out past a wall's end) does.
+//!
+//! From each patch `i`, `N` rays ([`super::FormFactorOptions::rays_per_patch`])
+//! leave points spread over its pieces by area (stratified: ray `k` at the
+//! area quantile `(k + ½)/N`, the point in that piece by the R2 sequence of
+//! Roberts 2018) in cosine-distributed directions around the piece's own
+//! normal (seeded per patch and ray: deterministic). The nearest triangle a
+//! ray meets decides: a front face credits the patch that owns the hit
+//! piece ([`crate::bake::pieces::PieceLookup`]), `F_ij ≈ c_ij / N` —
+//! exactly the definition `F_ij = 1/A_i ∫∫ V cos cos / (π r²)` estimated by
+//! Monte Carlo on the real surfaces, so near-field pairs, relief, slivers and
+//! partial visibility need no special case. A back face, a piece with no
+//! patch, or nothing at all (the ray leaves the scene) credits nobody;
+//! each is counted. `F_ii` is kept (a curved piece can see its own patch).
+//!
+//! **Reciprocity and row sums.** `G_ij = A_i F_ij` is symmetrised, `(G_ij +
+//! G_ji)/2`, which halves the noise; that moves each row's sum by the
+//! noise too, and a closed room's rows must sum to 1 exactly (an error of
+//! 0.5 % in a row sum is 4 % in `H` at albedo 0.9). So `G` is then scaled
+//! symmetrically, `G' = X G X` (Knight, Ruiz & Uçar's symmetric Sinkhorn
+//! iteration, SIAM J. Matrix Anal. Appl. 35(3), 2014), until every row sums
+//! to what its rays measured, `Σ_j G'_ij = A_i Σ_j c_ij / N`: reciprocity
+//! exact, row sums as measured, and in a closed environment exactly 1.
+//!
+//! Noise: a row's sum is a binomial estimate (std `√(s(1 − s)/N)`); a
+//! single entry `F_ij` has relative std `≈ 1/√(N F_ij)`, which the
+//! transfer matrix averages over many entries. The analytic view factors
+//! stay the contour-integral method's (`--form-factors contour`), which is
+//! exact for planar squares.
+
+use super::{FormFactorOptions, FormFactorStats, FormFactors, ROW_SUM_TOL};
+use crate::bake::error::BakeError;
+use crate::bake::pieces::{self, PieceGeo, PieceLookup};
+use crate::bake::voxelize::Voxelization;
+use crate::core::bvh::Bvh;
+use crate::core::math::{add, dot, normalize, scale, sub, tangent_basis, SplitMix64};
+use crate::core::scene::Scene;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// R2 sequence steps `1/g`, `1/g²` (g the plastic number).
+const R2: [f64; 2] = [0.754_877_666_246_692_7, 0.569_840_290_998_053_2];
+
+/// Most symmetric Sinkhorn iterations.
+const SINKHORN_ITERATIONS: usize = 500;
+
+/// The Sinkhorn iteration stops when every row is within this of its
+/// target (relative): far below f32 rounding of the entries.
+const SINKHORN_TOL: f64 = 1e-9;
+
+/// A triangle of a piece's fan, for area sampling.
+struct Fan {
+    a: [f64; 3],
+    b: [f64; 3],
+    c: [f64; 3],
+    normal: [f64; 3],
+    /// Cumulative area up to and including this triangle.
+    cum: f64,
+}
+
+/// Ray counts of one emitter.
+#[derive(Default, Clone, Copy)]
+struct RowCounts {
+    escaped: u64,
+    back: u64,
+    unowned: u64,
+    owned: u64,
+}
+
+/// The form factors of `vox`'s patches by rays from their pieces (module
+/// doc). `progress(done, total)` counts emitter patches.
+pub fn form_factors(
+    scene: &Scene,
+    vox: &Voxelization,
+    options: &FormFactorOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<FormFactors, BakeError> {
+    let start = Instant::now();
+    let n = vox.patches.len();
+    let rays = options.rays_per_patch as usize;
+    let geo = pieces::geometry(scene, vox);
+    let by_patch = pieces::by_patch(vox);
+    let lookup = PieceLookup::new(vox, scene.triangles.len());
+    let shift = super::shift_of(&vox.grid);
+    let bvh = Bvh::build(&scene.positions, &scene.triangles, shift);
+    let (lo, hi) = scene.bounds();
+    let extent = (0..3)
+        .map(|a| (hi[a] - lo[a]) as f64)
+        .fold(0.0, f64::max)
+        .max(1e-30);
+    let offset = 1e-4 * extent;
+    let far = 4.0 * extent;
+    let mut counts = vec![0.0f32; n * n];
+    let pairs_start = Instant::now();
+    let mut rows: Vec<RowCounts> = Vec::with_capacity(n);
+    // Rows in chunks, so that progress can be reported.
+    let chunk = 256usize;
+    for (ci, block) in counts.chunks_mut(chunk * n).enumerate() {
+        let r: Vec<RowCounts> = block
+            .par_chunks_mut(n)
+            .enumerate()
+            .map(|(k, row)| {
+                let i = ci * chunk + k;
+                emit(
+                    i,
+                    &by_patch[i],
+                    &geo,
+                    vox,
+                    &lookup,
+                    &bvh,
+                    shift,
+                    offset,
+                    far,
+                    rays,
+                    row,
+                )
+            })
+            .collect();
+        rows.extend(r);
+        progress(rows.len() as u64, n as u64);
+    }
+    let seconds_pairs = pairs_start.elapsed().as_secs_f64();
+    let post = Instant::now();
+    let areas: Vec<f64> = vox.patches.iter().map(|p| p.area).collect();
+    let mut stats = FormFactorStats {
+        backend: "rays from the real surfaces (CPU, f64)".into(),
+        options: Some(options.clone()),
+        patches: n as u64,
+        pairs_total: (n as u64) * (n as u64).saturating_sub(1) / 2,
+        rays_cast: (n * rays) as u64,
+        bvh: bvh.stats.clone(),
+        seconds_pairs,
+        ..Default::default()
+    };
+    for r in &rows {
+        stats.rays_escaped += r.escaped;
+        stats.rays_back_face += r.back;
+        stats.rays_unowned += r.unowned;
+    }
+    // Area-weighted fraction of the hemisphere meeting front faces, and the
+    // part of it owned by a patch (the row sums' target).
+    let atot: f64 = areas.iter().sum::<f64>().max(1e-300);
+    stats.front_fraction = rows
+        .iter()
+        .zip(&areas)
+        .map(|(r, a)| a * (r.owned + r.unowned) as f64 / rays as f64)
+        .sum::<f64>()
+        / atot;
+    let target: Vec<f64> = rows
+        .iter()
+        .zip(&areas)
+        .map(|(r, a)| a * r.owned as f64 / rays as f64)
+        .collect();
+    // G = A_i c_ij / N, symmetrised (f64).
+    let mut g = vec![0.0f64; n * n];
+    g.par_chunks_mut(n).enumerate().for_each(|(i, row)| {
+        for j in 0..n {
+            let gij = areas[i] * counts[i * n + j] as f64 / rays as f64;
+            let gji = areas[j] * counts[j * n + i] as f64 / rays as f64;
+            row[j] = 0.5 * (gij + gji);
+        }
+    });
+    drop(counts);
+    let (iterations, residual) = sinkhorn(&mut g, n, &target);
+    stats.sinkhorn_iterations = iterations as u64;
+    stats.sinkhorn_residual = residual;
+    let mut out = finish_symmetric(n, g, &areas, &mut stats)?;
+    stats.row_sum_mean = out
+        .row_sums()
+        .iter()
+        .zip(out.kept.iter().map(|&i| areas[i]))
+        .map(|(s, a)| s * a)
+        .sum::<f64>()
+        / atot;
+    stats.seconds_post = post.elapsed().as_secs_f64();
+    stats.seconds_total = start.elapsed().as_secs_f64();
+    stats.pairs_per_second = stats.pairs_total as f64 / seconds_pairs.max(1e-9);
+    stats.rays_per_second = stats.rays_cast as f64 / seconds_pairs.max(1e-9);
+    out.stats = stats;
+    Ok(out)
+}
+
+/// The rays of emitter `i` (module doc) into its row of counts.
+#[allow(clippy::too_many_arguments)]
+fn emit(
+    i: usize,
+    pieces: &[usize],
+    geo: &[PieceGeo],
+    vox: &Voxelization,
+    lookup: &PieceLookup,
+    bvh: &Bvh,
+    shift: [f64; 3],
+    offset: f64,
+    far: f64,
+    rays: usize,
+    row: &mut [f32],
+) -> RowCounts {
+    let mut c = RowCounts::default();
+    let mut fans = Vec::new();
+    let mut total = 0.0;
+    for &k in pieces {
+        let g = &geo[k];
+        for t in 1..g.poly.len().saturating_sub(1) {
+            let (a, b, cc) = (g.poly[0], g.poly[t], g.poly[t + 1]);
+            let area =
+                0.5 * crate::core::math::norm(crate::core::math::cross(sub(b, a), sub(cc, a)));
+            if area > 0.0 {
+                total += area;
+                fans.push(Fan {
+                    a,
+                    b,
+                    c: cc,
+                    normal: g.normal,
+                    cum: total,
+                });
+            }
+        }
+    }
+    if fans.is_empty() {
+        return c;
+    }
+    let mut rng =
+        SplitMix64::new(0x9e37_79b9_7f4a_7c15 ^ (i as u64).wrapping_mul(0xd6e8_feb8_6659_fd93));
+    let mut f = 0usize;
+    for k in 0..rays {
+        // The fan triangle at the area quantile (k + ½)/N (quantiles grow
+        // with k, so the search only moves forward).
+        let q = (k as f64 + 0.5) / rays as f64 * total;
+        while f + 1 < fans.len() && fans[f].cum < q {
+            f += 1;
+        }
+        let t = &fans[f];
+        let (mut u, mut v) = (
+            (0.5 + R2[0] * k as f64).fract(),
+            (0.5 + R2[1] * k as f64).fract(),
+        );
+        if u + v > 1.0 {
+            u = 1.0 - u;
+            v = 1.0 - v;
+        }
+        let x = add(t.a, add(scale(sub(t.b, t.a), u), scale(sub(t.c, t.a), v)));
+        let n = t.normal;
+        let d = cosine_direction(n, &mut rng);
+        let o = sub(add(x, scale(n, offset)), shift);
+        match bvh.closest_hit(o, scale(d, far)) {
+            None => c.escaped += 1,
+            Some((leaf, tp)) => {
+                let tri = bvh.order[leaf as usize] as usize;
+                let nt = geo_normal(bvh, leaf);
+                if dot(nt, d) >= 0.0 {
+                    c.back += 1;
+                    continue;
+                }
+                let y = add(add(o, scale(d, tp * far)), shift);
+                match lookup.find(vox, tri, y).and_then(|p| vox.pieces[p].patch) {
+                    Some(j) => {
+                        row[j as usize] += 1.0;
+                        c.owned += 1;
+                    }
+                    None => c.unowned += 1,
+                }
+            }
+        }
+    }
+    c
+}
+
+/// The unit normal of a BVH triangle (its winding), from its stored f32
+/// vertices.
+fn geo_normal(bvh: &Bvh, leaf: u32) -> [f64; 3] {
+    let t = &bvh.tris[leaf as usize];
+    let p = |v: [f32; 3]| v.map(f64::from);
+    let nn = crate::core::math::cross(sub(p(t.v1), p(t.v0)), sub(p(t.v2), p(t.v0)));
+    normalize(nn)
+}
+
+/// A cosine-distributed unit direction around `n` (Malley's method).
+fn cosine_direction(n: [f64; 3], rng: &mut SplitMix64) -> [f64; 3] {
+    let (u1, u2) = (rng.uniform(), rng.uniform());
+    let r = u1.sqrt();
+    let phi = 2.0 * std::f64::consts::PI * u2;
+    let (t, b) = tangent_basis(n);
+    let z = (1.0 - u1).max(0.0).sqrt();
+    normalize(add(
+        add(scale(t, r * phi.cos()), scale(b, r * phi.sin())),
+        scale(n, z),
+    ))
+}
+
+/// Symmetric Sinkhorn scaling of `g` (n × n, symmetric, non-negative) so
+/// that row `i` sums to `target[i]` (module doc): `x_i ← √(x_i t_i / (G
+/// x)_i)`, then `G ← X G X`. Rows with a zero target or a zero row stay
+/// zero. Returns the iterations and the largest relative row error left.
+pub fn sinkhorn(g: &mut [f64], n: usize, target: &[f64]) -> (usize, f64) {
+    let mut x: Vec<f64> = (0..n)
+        .map(|i| if target[i] > 0.0 { 1.0 } else { 0.0 })
+        .collect();
+    let mut residual = f64::INFINITY;
+    let mut it = 0;
+    while it < SINKHORN_ITERATIONS {
+        let gx: Vec<f64> = g
+            .par_chunks(n)
+            .map(|row| row.iter().zip(&x).map(|(a, b)| a * b).sum())
+            .collect();
+        residual = (0..n)
+            .filter(|&i| target[i] > 0.0 && gx[i] > 0.0)
+            .map(|i| (x[i] * gx[i] / target[i] - 1.0).abs())
+            .fold(0.0, f64::max);
+        if residual < SINKHORN_TOL {
+            break;
+        }
+        for i in 0..n {
+            x[i] = if target[i] > 0.0 && gx[i] > 0.0 {
+                (x[i] * target[i] / gx[i]).sqrt()
+            } else {
+                0.0
+            };
+        }
+        it += 1;
+    }
+    g.par_chunks_mut(n).enumerate().for_each(|(i, row)| {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v *= x[i] * x[j];
+        }
+    });
+    (it, residual)
+}
+
+/// From a symmetric `G` (f64, diagonal included) to the final matrix:
+/// rows above `1 + ROW_SUM_TOL` scaled down with their columns (counted),
+/// removal of patches that see nothing, `F_ij = G_ij / A_i`, compaction,
+/// the invariant measures.
+fn finish_symmetric(
+    n: usize,
+    mut g: Vec<f64>,
+    areas: &[f64],
+    stats: &mut FormFactorStats,
+) -> Result<FormFactors, BakeError> {
+    let s: Vec<f64> = g.par_chunks(n).map(|r| r.iter().sum()).collect();
+    if let Some(i) = s.iter().position(|v| !v.is_finite()) {
+        return Err(BakeError::Numeric {
+            stage: "form factors",
+            detail: format!("row {i} of the ray-traced form factors is not finite"),
+        });
+    }
+    stats.max_row_sum_before = (0..n).map(|i| s[i] / areas[i]).fold(0.0, f64::max);
+    // Rows above 1 (the Sinkhorn residual): scale symmetrically.
+    let scale_of: Vec<f64> = (0..n)
+        .map(|i| {
+            let r = s[i] / areas[i];
+            if r > 1.0 + ROW_SUM_TOL {
+                1.0 / r.sqrt()
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    stats.row_corrections = scale_of.iter().filter(|&&v| v < 1.0).count() as u64;
+    let kept: Vec<usize> = (0..n).filter(|&i| s[i] > 0.0).collect();
+    let k = kept.len();
+    stats.kept = k as u64;
+    stats.removed_patches = (n - k) as u64;
+    let mut f = vec![0.0f32; k * k];
+    f.par_chunks_mut(k.max(1)).enumerate().for_each(|(a, row)| {
+        let i = kept[a];
+        for (b, v) in row.iter_mut().enumerate() {
+            let j = kept[b];
+            *v = (g[i * n + j] * scale_of[i] * scale_of[j] / areas[i]) as f32;
+        }
+    });
+    g.clear();
+    let mut max_recip = 0.0f64;
+    for a in 0..k {
+        for b in a + 1..k {
+            let (x, y) = (
+                areas[kept[a]] * f[a * k + b] as f64,
+                areas[kept[b]] * f[b * k + a] as f64,
+            );
+            let big = x.max(y);
+            if big > 0.0 {
+                max_recip = max_recip.max((x - y).abs() / big);
+            }
+        }
+    }
+    stats.max_reciprocity_error = max_recip;
+    let out = FormFactors {
+        n: k,
+        f,
+        kept,
+        stats: FormFactorStats::default(),
+    };
+    stats.max_row_sum = out.row_sums().into_iter().fold(0.0, f64::max);
+    Ok(out)
+}

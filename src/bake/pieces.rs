@@ -1,0 +1,119 @@
+//! The real surface behind each patch: the pieces of triangles in voxels
+//! that the voxelizer grouped into it ([`super::voxelize::OwnedPiece`]),
+//! with their polygons, and the lookup from a point of a triangle to its
+//! piece. Form factors shoot rays from these pieces and credit what the rays
+//! hit to the hit piece's patch; the surface map and the sample points are
+//! built from them too.
+
+use super::voxelize::{grid_coords, Voxelization};
+use crate::core::math::{cross, dot, sub};
+use crate::core::patch::piece_polygon;
+use crate::core::scene::Scene;
+use rayon::prelude::*;
+
+/// One piece with its geometry (world coordinates).
+#[derive(Clone, Debug)]
+pub struct PieceGeo {
+    /// The convex polygon of the triangle inside the voxel.
+    pub poly: Vec<[f64; 3]>,
+    /// The triangle's unit normal (from its winding).
+    pub normal: [f64; 3],
+    pub area: f64,
+    pub centroid: [f64; 3],
+}
+
+/// The geometry of every piece of `vox`, in `vox.pieces` order.
+pub fn geometry(scene: &Scene, vox: &Voxelization) -> Vec<PieceGeo> {
+    let coords = grid_coords(scene, &vox.grid);
+    vox.pieces
+        .par_iter()
+        .map(|p| {
+            let poly = piece_polygon(&vox.grid, &coords[p.tri as usize], p.voxel);
+            let normal = scene.triangle_normal(p.tri as usize);
+            let (area, centroid) = polygon_area_centroid(&poly, normal);
+            PieceGeo {
+                poly,
+                normal,
+                area,
+                centroid,
+            }
+        })
+        .collect()
+}
+
+/// Area and centroid of a planar polygon with unit normal `n`.
+pub fn polygon_area_centroid(poly: &[[f64; 3]], n: [f64; 3]) -> (f64, [f64; 3]) {
+    if poly.len() < 3 {
+        return (0.0, poly.first().copied().unwrap_or([0.0; 3]));
+    }
+    let (mut a2, mut acc) = (0.0, [0.0; 3]);
+    for i in 1..poly.len() - 1 {
+        let s = dot(cross(sub(poly[i], poly[0]), sub(poly[i + 1], poly[0])), n);
+        a2 += s;
+        for q in 0..3 {
+            acc[q] += s * (poly[0][q] + poly[i][q] + poly[i + 1][q]);
+        }
+    }
+    if !(a2.abs() > 0.0) {
+        return (0.0, poly[0]);
+    }
+    (0.5 * a2.abs(), acc.map(|x| x / (3.0 * a2)))
+}
+
+/// The piece indices of each voxelization patch.
+pub fn by_patch(vox: &Voxelization) -> Vec<Vec<usize>> {
+    let mut out = vec![Vec::new(); vox.patches.len()];
+    for (k, p) in vox.pieces.iter().enumerate() {
+        if let Some(i) = p.patch {
+            out[i as usize].push(k);
+        }
+    }
+    out
+}
+
+/// From a point on a triangle to the triangle's piece holding it.
+pub struct PieceLookup {
+    /// Triangle `t`'s pieces are `vox.pieces[start[t]..start[t + 1]]`
+    /// (sorted by voxel key).
+    start: Vec<u32>,
+}
+
+impl PieceLookup {
+    pub fn new(vox: &Voxelization, triangles: usize) -> PieceLookup {
+        let mut start = vec![0u32; triangles + 1];
+        for p in &vox.pieces {
+            start[p.tri as usize + 1] += 1;
+        }
+        for t in 0..triangles {
+            start[t + 1] += start[t];
+        }
+        PieceLookup { start }
+    }
+
+    /// The piece of triangle `t` holding world point `x`: the one in `x`'s
+    /// voxel, else (rounding at a voxel boundary, a sliver below the
+    /// voxelizer's threshold) the one whose voxel centre is nearest.
+    pub fn find(&self, vox: &Voxelization, t: usize, x: [f64; 3]) -> Option<usize> {
+        let (a, b) = (self.start[t] as usize, self.start[t + 1] as usize);
+        if a == b {
+            return None;
+        }
+        let grid = &vox.grid;
+        let g: [f64; 3] = std::array::from_fn(|k| (x[k] - grid.origin[k]) / grid.size);
+        let v: [i64; 3] = g.map(|c| c.floor() as i64);
+        if (0..3).all(|k| v[k] >= 0 && v[k] < grid.dims[k] as i64) {
+            let key = grid.key(v.map(|c| c as u32));
+            if let Ok(i) = vox.pieces[a..b].binary_search_by_key(&key, |p| grid.key(p.voxel)) {
+                return Some(a + i);
+            }
+        }
+        (a..b).min_by(|&i, &j| {
+            let d = |k: usize| {
+                (0..3)
+                    .map(|q| (vox.pieces[k].voxel[q] as f64 + 0.5 - g[q]).powi(2))
+                    .sum::<f64>()
+            };
+            d(i).total_cmp(&d(j))
+        })
+    }
+}
