@@ -663,9 +663,9 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         // wall or a floor above does.
         let areas: Vec<f64> = {
             let mut s = vec![0.0; run.len()];
-            for k in 0..run.len() {
+            for (k, piece) in run.iter().enumerate() {
                 let r = root(&mut parent, k);
-                s[r] += run[k].0.area;
+                s[r] += piece.0.area;
             }
             s
         };
