@@ -727,6 +727,9 @@ fn generate(name: Option<String>, output: Option<PathBuf>, list: bool) -> anyhow
         for n in generate::BUNDLED {
             println!("{n}");
         }
+        for n in generate::STRESS {
+            println!("{n} (generated on demand, not committed)");
+        }
         return Ok(());
     }
     let name = name.context("a scene name is required (see --list)")?;

@@ -173,12 +173,15 @@ impl std::fmt::Display for BakeReport {
         writeln!(f, "patches: {} ({})", v.patches, per_dir.join(", "))?;
         writeln!(
             f,
-            "area: patches {:.6e} of scene {:.6e} ({:.2} %); {} staircase groups merged; {} groups facing into solid dropped (area {:.3e}: {}); {} albedo components clamped",
+            "area: patches {:.6e} of scene {:.6e} ({:.2} %); {} staircase groups merged, {} split where a surface separates them, {} facing a surface within two voxels (kept); covered: {} pieces dropped, {} partly, area {:.3e} ({}); {} albedo components clamped",
             v.patch_area,
             v.scene_area,
             100.0 * v.patch_area / v.scene_area.max(f64::MIN_POSITIVE),
             v.merged_groups,
-            v.covered_groups,
+            v.split_groups,
+            v.facing_back_groups,
+            v.covered_pieces,
+            v.partly_covered_pieces,
             v.covered_area,
             Direction::ALL
                 .iter()

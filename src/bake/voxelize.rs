@@ -52,7 +52,7 @@ use crate::bake::error::BakeError;
 use crate::core::bvh::Bvh;
 use crate::core::compute::{round_up, Access, Backend, Gpu};
 use crate::core::math::{cross, dot, sub};
-use crate::core::patch::{clip_to_unit_box, Direction, Grid, Patch};
+use crate::core::patch::{clip_to_unit_box, piece_polygon, Direction, Grid, Patch};
 use crate::core::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -68,6 +68,10 @@ pub const CONNECT_LIFT: f64 = 1e-3;
 /// direction does not separate them (their own surface, curving across the
 /// chord): a voxel's diagonal.
 pub const CONNECT_OWN: f64 = 1.732_050_807_568_877_2;
+
+/// A piece's point is covered when another surface lies within this many
+/// voxel sizes in front of it, along its normal (module doc).
+pub const COVER_DISTANCE: f64 = 0.5;
 
 /// Nearest pieces (or pairs of pieces) tested for connectivity.
 pub const NEAREST: usize = 4;
@@ -150,11 +154,14 @@ pub struct VoxelStats {
     /// Voxel groups facing a surface that looks back from the neighbour
     /// voxel: kept as patches (they receive light), counted.
     pub facing_back_groups: u64,
-    /// Voxel groups dropped as covered, and their area (none since facing
-    /// groups are kept; the fields stay for covered geometry).
+    /// Voxel groups dropped (none since facing groups are kept).
     pub covered_groups: u64,
+    /// Covered geometry: pieces wholly covered (dropped), pieces partly
+    /// covered (their covered share dropped), and the covered area in all
+    /// and by facing direction (+x, −x, +y, −y, +z, −z).
+    pub covered_pieces: u64,
+    pub partly_covered_pieces: u64,
     pub covered_area: f64,
-    /// Covered area by facing direction (+x, −x, +y, −y, +z, −z).
     pub covered_area_per_direction: [f64; 6],
     /// Patch albedo components outside [0, ALBEDO_MAX] after averaging, clamped.
     pub clamped_albedo: u64,
@@ -576,11 +583,65 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
     let bvh = Bvh::build(&scene.positions, &scene.triangles, shift);
     let lift = CONNECT_LIFT * grid.size;
     let own = CONNECT_OWN * grid.size;
-    let piece_acc = |i: usize, tri: u32| -> (Acc, [f64; 3]) {
+
+    // Covered geometry (module doc, "Covered geometry"): the share of each
+    // piece with another surface within COVER_DISTANCE voxels in front.
+    let coords = grid_coords(scene, &grid);
+    let cover = COVER_DISTANCE * grid.size;
+    let covered: Vec<f64> = kept
+        .par_iter()
+        .map(|&(_, _, tri, i)| {
+            let p = &pieces[i];
+            let n = normals[tri as usize];
+            let c: [f64; 3] = std::array::from_fn(|q| {
+                grid.origin[q] + grid.size * (p.voxel[q] as f64 + p.centroid[q])
+            });
+            let poly = piece_polygon(&grid, &coords[tri as usize], p.voxel);
+            let step = (poly.len() / 4).max(1);
+            let mut points = vec![c];
+            points.extend(
+                poly.iter()
+                    .step_by(step)
+                    .take(4)
+                    .map(|v| std::array::from_fn(|q| c[q] + 0.7 * (v[q] - c[q]))),
+            );
+            let hidden = points
+                .iter()
+                .filter(|x| {
+                    let o: [f64; 3] = std::array::from_fn(|q| x[q] + lift * n[q] - shift[q]);
+                    bvh.any_hit(o, n.map(|v| v * cover), |k, _| bvh.order[k as usize] == tri)
+                        .is_some()
+                })
+                .count();
+            hidden as f64 / points.len() as f64
+        })
+        .collect();
+    let mut hidden_pieces: Vec<OwnedPiece> = Vec::new();
+    let mut visible = Vec::with_capacity(kept.len());
+    let mut visible_share = Vec::with_capacity(kept.len());
+    for (k, &(key, dir, tri, i)) in kept.iter().enumerate() {
+        let a = pieces[i].area * s2 * covered[k];
+        stats.covered_area += a;
+        stats.covered_area_per_direction[dir as usize] += a;
+        if covered[k] >= 1.0 {
+            stats.covered_pieces += 1;
+            hidden_pieces.push(OwnedPiece {
+                tri,
+                voxel: pieces[i].voxel,
+                patch: None,
+            });
+        } else {
+            stats.partly_covered_pieces += u64::from(covered[k] > 0.0);
+            visible.push((key, dir, tri, i));
+            visible_share.push(1.0 - covered[k]);
+        }
+    }
+    let kept = visible;
+    let piece_acc = |i: usize, tri: u32, share: f64| -> (Acc, [f64; 3]) {
         let p = &pieces[i];
         let material = &scene.materials[scene.triangle_material[tri as usize] as usize];
         let n = normals[tri as usize];
-        let a = p.area * s2;
+        let a = p.area * s2 * share;
         let world: [f64; 3] = std::array::from_fn(|q| {
             grid.origin[q] + grid.size * (p.voxel[q] as f64 + p.centroid[q])
         });
@@ -627,7 +688,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         let run: Vec<(Acc, [f64; 3], [f64; 3])> = (a..b)
             .map(|idx| {
                 let (_, _, tri, i) = kept[idx];
-                let (acc, c) = piece_acc(i, tri);
+                let (acc, c) = piece_acc(i, tri, visible_share[idx]);
                 (acc, c, normals[tri as usize])
             })
             .collect();
@@ -818,6 +879,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
             }
         })
         .collect();
+    pieces.extend(hidden_pieces);
     pieces.sort_unstable_by_key(|p| (p.tri, grid.key(p.voxel)));
     let mut patches = Vec::with_capacity(targets.len());
     for ((_, dir, _), (voxel, acc)) in targets {

@@ -542,11 +542,11 @@ impl Bvh {
     /// reaches `b` on their front sides (within [`SIDE_SLACK`] of the
     /// tangent plane, so gently convex surfaces pass: a chord dips just
     /// behind them), and, with each end lifted `lift` along its normal, it
-    /// crosses no triangle — ignoring hits within `2 lift` of either end
-    /// and hits on triangles facing `dir` (a [`Direction`] as `u32`) within
-    /// `own` of either end: the surfaces the points lie on, which can curve
-    /// across the chord. A wall between them, of any thickness, blocks, and
-    /// a surface reached from behind (the floor above a floor) is not
+    /// crosses no triangle — ignoring hits on triangles facing `dir` (a
+    /// [`Direction`] as `u32`) within `own` of either end: the surfaces the
+    /// points lie on, which can curve across the chord. A wall between
+    /// them, of any thickness and however close to an end, blocks, and a
+    /// surface reached from behind (the floor above a floor) is not
     /// connected.
     #[allow(clippy::too_many_arguments)]
     pub fn surface_segment_clear(
@@ -565,7 +565,7 @@ impl Bvh {
         let (o, e) = (lifted(a, na), lifted(b, nb));
         let d = sub(e, o);
         let len = dot(d, d).sqrt();
-        if !(len > 2.0 * lift) {
+        if !(len > 0.0) {
             return true;
         }
         if dot(d, na) < -SIDE_SLACK * len || dot(d, nb) > SIDE_SLACK * len {
@@ -573,9 +573,7 @@ impl Bvh {
         }
         self.any_hit(o, d, |k, t| {
             let (s, e) = (t * len, (1.0 - t) * len);
-            s <= 2.0 * lift
-                || e <= 2.0 * lift
-                || (self.tris[k as usize].dir == dir && (s <= own || e <= own))
+            self.tris[k as usize].dir == dir && (s <= own || e <= own)
         })
         .is_none()
     }

@@ -17,6 +17,7 @@ mod analytic;
 mod cornell;
 mod interior;
 mod mesh;
+mod stress;
 
 pub use analytic::{
     coaxial_disks_factor, parallel_rectangles_factor, perpendicular_rectangles_factor,
@@ -36,6 +37,10 @@ pub const BUNDLED: &[&str] = &[
     "closed_cube",
     "interior",
 ];
+
+/// Scenes generated on demand for accuracy tests and reports, not
+/// committed (`stress.rs` describes them).
+pub const STRESS: &[&str] = &["cornell_panel", "two_rooms", "odd_box"];
 
 /// An error generating or writing a bundled scene.
 #[derive(Debug, thiserror::Error)]
@@ -164,10 +169,13 @@ pub fn build(name: &str) -> Result<GeneratedScene, GenerateError> {
         "coaxial_disks" => analytic::coaxial_disks(),
         "closed_cube" => analytic::closed_cube(),
         "interior" => interior::build(),
+        "cornell_panel" => stress::cornell_panel(),
+        "two_rooms" => stress::two_rooms(),
+        "odd_box" => stress::odd_box(),
         _ => {
             return Err(GenerateError::UnknownScene {
                 name: name.to_string(),
-                known: BUNDLED.join(", "),
+                known: [BUNDLED, STRESS].concat().join(", "),
             })
         }
     };
