@@ -85,7 +85,7 @@ fn thin_walls_at_any_position_let_no_light_into_the_dark_room() {
             position: [1.0, 0.6, 0.5],
             intensity: [3.0; 3],
         };
-        rt.frame(&[light.clone()], &BTreeMap::new());
+        rt.frame(std::slice::from_ref(&light), &BTreeMap::new());
         let (mut lit, mut dark) = (0, 0);
         for (j, p) in rt.baked.patches.iter().enumerate() {
             let in_dark = p.centre[0] as f64 > 0.5 * (x0 + x1);
