@@ -304,7 +304,8 @@ struct BakeArgs {
     #[arg(long, value_name = "F", conflicts_with = "max_error")]
     top_fraction: Option<f64>,
     /// Choose the cheapest codec setting whose relative RMS error of H = T·B0
-    /// over the error lights is at most E (e.g. 0.02).
+    /// over the error lights is at most E (default 0.02 unless --codec or
+    /// --top-fraction fixes the setting).
     #[arg(long, value_name = "E")]
     max_error: Option<f64>,
     /// Seeded random lights the compression error is measured over (0: do
@@ -358,6 +359,7 @@ impl BakeArgs {
         };
         let codec = match (self.max_error, self.codec, self.top_fraction) {
             (Some(e), _, _) => CodecChoice::MaxError(e),
+            (None, None, None) => CodecChoice::default(),
             (None, name, top) => {
                 let mut kind = match name {
                     Some(n) => CodecKind::parse(&n).context("option --codec")?,

@@ -30,9 +30,16 @@ pub enum CodecChoice {
     MaxError(f64),
 }
 
+/// The default bound on the compression error: the relative RMS error of
+/// `H = T̃ · B0` over the error lights (DESIGN.md's 2 %).
+pub const DEFAULT_MAX_ERROR: f64 = 0.02;
+
 impl Default for CodecChoice {
+    /// The cheapest setting within [`DEFAULT_MAX_ERROR`]: a fixed setting
+    /// (the thesis's top 4 % included) misses 2 % on some scenes, so the
+    /// bake measures instead of assuming.
     fn default() -> Self {
-        CodecChoice::Fixed(CodecKind::default())
+        CodecChoice::MaxError(DEFAULT_MAX_ERROR)
     }
 }
 

@@ -124,7 +124,14 @@ pub(super) fn fov_y_deg() -> f32 {
 }
 
 pub(super) fn build() -> Result<GeneratedScene, usize> {
-    let mut b = MeshBuilder::new(DECIMALS, MAX_CELL);
+    build_with("cornell_box", MAX_CELL)
+}
+
+/// The box from the published data with cells of at most `max_cell`
+/// millimetres (`f64::INFINITY`: the published quads untessellated, as a
+/// user's export would have them), written as `name`.
+pub(super) fn build_with(name: &str, max_cell: f64) -> Result<GeneratedScene, usize> {
+    let mut b = MeshBuilder::new(DECIMALS, max_cell);
     let white = b.material("white", WHITE, [0.0; 3]);
     let red = b.material("red", RED, [0.0; 3]);
     let green = b.material("green", GREEN, [0.0; 3]);
@@ -177,7 +184,7 @@ pub(super) fn build() -> Result<GeneratedScene, usize> {
             .into(),
     };
     assemble(
-        "cornell_box",
+        name,
         &[
             "Cornell box: Cornell Program of Computer Graphics, \"Cornell Box Data\",",
             "https://www.graphics.cornell.edu/online/box/data.html (published coordinates kept exactly).",

@@ -40,7 +40,7 @@ pub const BUNDLED: &[&str] = &[
 
 /// Scenes generated on demand for accuracy tests and reports, not
 /// committed (`stress.rs` describes them).
-pub const STRESS: &[&str] = &["cornell_panel", "two_rooms", "odd_box"];
+pub const STRESS: &[&str] = &["cornell_panel", "cornell_published", "two_rooms", "odd_box"];
 
 /// An error generating or writing a bundled scene.
 #[derive(Debug, thiserror::Error)]
@@ -170,6 +170,7 @@ pub fn build(name: &str) -> Result<GeneratedScene, GenerateError> {
         "closed_cube" => analytic::closed_cube(),
         "interior" => interior::build(),
         "cornell_panel" => stress::cornell_panel(),
+        "cornell_published" => cornell::build_with("cornell_published", 1e9),
         "two_rooms" => stress::two_rooms(),
         "odd_box" => stress::odd_box(),
         _ => {

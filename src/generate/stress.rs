@@ -8,6 +8,9 @@
 //!   hidden), two blocks rotated by ±17° standing on the floor without
 //!   bottoms (the floor under them is hidden), Cornell albedos, the panel
 //!   emitting `Ke` = (17, 12, 4).
+//! - `cornell_published`: the Cornell box from its published data in
+//!   millimetres with the published quads untessellated (the bundled one
+//!   is tessellated into 5 cm cells), as a user's export would have it.
 //! - `two_rooms`: two closed 2 × 1 × 1 m rooms sharing a wall 2 cm thick
 //!   (from x = 2.01 to 2.03, so that no usual voxel grid aligns with it),
 //!   each face one quad; the left room's ceiling glows (`Ke` 5), the right

@@ -154,19 +154,21 @@ pub fn mat_vec(m: &[f32], n: usize, v: &[f32]) -> Vec<f64> {
 
 /// The candidates [`choose`] tries by default: BC1-log with the automatic
 /// log range and RGB9E5 sparse values at top fractions {0, 0.01, 0.02,
-/// 0.03, 0.04, 0.06, 0.08}, the same at the top 4 % with f16 and f32 sparse
-/// values, the thesis's setting, BC4-log at {0, 0.02}, BC6H, F16 and F32
-/// (exact, so some candidate always passes).
+/// 0.03, 0.04, 0.06, 0.08, 0.12, 0.16, 0.2, 0.24}, the same at the top
+/// 4 % with f16 and f32 sparse values, the thesis's setting, BC4-log at
+/// {0, 0.02}, BC6H, F16 and F32 (exact, so some candidate always passes).
 pub fn default_candidates() -> Vec<CodecKind> {
     let bc1 = |top_fraction, sparse| CodecKind::Bc1Log {
         top_fraction,
         log_range: LOG_RANGE_AUTO,
         sparse,
     };
-    let mut v: Vec<CodecKind> = [0.0, 0.01, 0.02, 0.03, 0.04, 0.06, 0.08]
-        .iter()
-        .map(|&f| bc1(f, SparseValues::Rgb9e5))
-        .collect();
+    let mut v: Vec<CodecKind> = [
+        0.0, 0.01, 0.02, 0.03, 0.04, 0.06, 0.08, 0.12, 0.16, 0.2, 0.24,
+    ]
+    .iter()
+    .map(|&f| bc1(f, SparseValues::Rgb9e5))
+    .collect();
     v.push(bc1(0.04, SparseValues::F16));
     v.push(bc1(0.04, SparseValues::F32));
     v.push(CodecKind::THESIS);
@@ -230,9 +232,20 @@ pub fn choose_with(
         .iter()
         .map(|b| std::array::from_fn(|c| mat_vec(t[c], n, &b[c])))
         .collect();
+    // Cheapest first (by the bytes a setting is expected to take); once a
+    // setting meets the bound, only those expected to be cheaper than it
+    // still need trying.
+    let mut order: Vec<CodecKind> = candidates.to_vec();
+    order.sort_by(|a, b| expected_bytes_per_entry(*a).total_cmp(&expected_bytes_per_entry(*b)));
     let mut best: Option<(CodecKind, Encoded, f64)> = None;
     let mut tried = Vec::new();
-    for &kind in candidates {
+    for kind in order {
+        if best
+            .as_ref()
+            .is_some_and(|b| expected_bytes_per_entry(kind) >= b.1.bytes_per_entry())
+        {
+            break;
+        }
         let e = encode(kind, t, n)?;
         let err = h_error(&e, &reference, b0_samples);
         on_candidate(kind, err, e.bytes_per_entry());
@@ -252,6 +265,36 @@ pub fn choose_with(
         max_error,
         tried: tried.join("; "),
     })
+}
+
+/// The bytes per matrix entry a setting is expected to take for an RGB
+/// matrix without zero tiles (module doc of the codec: the dense part's
+/// rate plus, per sparse position, a 2-byte column and its values), used to
+/// try the cheapest settings first.
+pub fn expected_bytes_per_entry(kind: CodecKind) -> f64 {
+    let sparse = |top: f64, s: SparseValues| {
+        top * (2.0
+            + match s {
+                SparseValues::Rgb9e5 => 4.0,
+                SparseValues::F16 => 6.0,
+                SparseValues::F32 => 12.0,
+            })
+    };
+    match kind {
+        CodecKind::Bc1Log {
+            top_fraction,
+            sparse: s,
+            ..
+        } => 0.5 + sparse(top_fraction, s),
+        CodecKind::Bc4Log {
+            top_fraction,
+            sparse: s,
+            ..
+        } => 1.5 + sparse(top_fraction, s),
+        CodecKind::Bc6h => 1.0,
+        CodecKind::F16 => 6.0,
+        CodecKind::F32 => 12.0,
+    }
 }
 
 /// The relative RMS error of `H̃ = T̃ B0` (computed from the encoding in

@@ -163,12 +163,10 @@ fn sparse_key(channels: &[&[f32]], inv_max: &[f32], k: usize) -> u32 {
 /// order) without sorting or storing all keys: a two-level radix select on
 /// the keys' bit patterns (high 16 bits, then low 16), then one pass that
 /// collects the positions row by row. Returns the CSR rows' columns.
-fn select_top(channels: &[&[f32]], n: usize, count: usize) -> Vec<Vec<u32>> {
+fn select_top(n: usize, count: usize, key: &(dyn Fn(usize) -> u32 + Sync)) -> Vec<Vec<u32>> {
     if count == 0 || n == 0 {
         return vec![Vec::new(); n];
     }
-    let inv_max = crate::bakefile::codec::inverse_maxima(channels);
-    let key = |k: usize| sparse_key(channels, &inv_max, k);
     let histogram = |select: &(dyn Fn(u32) -> Option<usize> + Sync)| -> Vec<u64> {
         (0..n)
             .into_par_iter()
@@ -294,7 +292,8 @@ pub fn encode(kind: CodecKind, t: [&[f32]; 3], n: usize) -> Result<Encoded, Enco
     let (top_fraction, log_range, sparse_values) =
         kind.log_params().unwrap_or((0.0, 0.0, SparseValues::F32));
     let count = (top_fraction * (n * n) as f64).round() as usize;
-    let rows = select_top(&stored, n, count);
+    let inv_max = crate::bakefile::codec::inverse_maxima(&stored);
+    let rows = select_top(n, count, &|k| sparse_key(&stored, &inv_max, k));
     let mut mask = Mask {
         bits: vec![0u64; (n * n).div_ceil(64)],
         n,
