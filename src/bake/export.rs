@@ -3,6 +3,7 @@
 //! `T_decoded.npy` and `albedo.npy`.
 
 use super::form_factor::{self, FormFactors};
+use super::pieces::PieceGeo;
 use super::preview;
 use super::transfer::Transfer;
 use crate::core::npy;
@@ -11,8 +12,9 @@ use anyhow::Context as _;
 use std::io::Write;
 use std::path::Path;
 
-/// Writes the inspection files: `patches.csv` and `patches.png` (the kept
-/// patches, in matrix order), `F.npy` (n × n), `T.npy` (3 × n × n,
+/// Writes the inspection files: `patches.csv` (the kept patches, in matrix
+/// order), `patches.png` (the pieces, each with the index in `patches` of its
+/// patch, drawn by [`preview::render_pieces`]), `F.npy` (n × n), `T.npy` (3 × n × n,
 /// channel-major) and `albedo.npy` (n × 3). Refuses, before writing
 /// anything, when `T.npy` would exceed [`form_factor::NPY_MAX_BYTES`].
 #[allow(clippy::too_many_arguments)]
@@ -21,6 +23,7 @@ pub fn export(
     scene_path: &Path,
     bounds: ([f32; 3], [f32; 3]),
     patches: &[Patch],
+    pieces: (&[PieceGeo], &[Option<u32>]),
     ff: &FormFactors,
     tr: &Transfer,
     albedo: &[[f32; 3]],
@@ -37,7 +40,7 @@ pub fn export(
     export_patches(dir, patches)?;
     let camera = scene_camera(scene_path, bounds)?;
     let png = dir.join("patches.png");
-    preview::render_patches(patches, &camera, 800, 600)
+    preview::render_pieces(pieces.0, pieces.1, patches, &camera, 800, 600)
         .save(&png)
         .with_context(|| format!("writing {}", png.display()))?;
     form_factor::write_f_npy(&dir.join("F.npy"), ff)?;

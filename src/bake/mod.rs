@@ -250,11 +250,18 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     if let Some(dir) = &config.export {
         progress(&format!("exporting to {}", dir.display()));
         let t = Instant::now();
+        let geo = pieces::geometry(&scene, &vox);
+        let owner: Vec<Option<u32>> = vox
+            .pieces
+            .iter()
+            .map(|p| p.patch.and_then(|v| patch_index_of[v as usize]))
+            .collect();
         export::export(
             dir,
             &config.scene,
             scene.bounds(),
             &patches,
+            (&geo, &owner),
             &ff,
             &tr,
             &albedo,

@@ -1,12 +1,15 @@
-//! A software preview of the voxel patches: each patch drawn as a square of
-//! its area in its plane, coloured by its albedo (emitters in white), seen
-//! from the scene's camera. Written by `bake --export` as `patches.png` so
-//! that a user can see what the simplification kept, without a GPU.
-//! Patches facing away from the camera are culled.
+//! A software preview of the voxel patches: each patch drawn as its real
+//! region, the triangle pieces the voxelizer gave it, in the patch's albedo
+//! (emitters in white), with neighbouring patches told apart by a slight
+//! change of shade, seen from the scene's camera. Pieces that belong to no
+//! kept patch (covered geometry, patches that see nothing) are drawn in
+//! dark magenta. Written by `bake --export` as `patches.png` so that a user
+//! can see what the simplification kept, without a GPU. Back faces are
+//! culled.
 
+use crate::bake::pieces::PieceGeo;
 use crate::core::math::{cross, dot, normalize, sub};
 use crate::core::patch::Patch;
-use crate::core::patch::CORNERS;
 use crate::core::scene_config::Camera;
 use image::{Rgb, RgbImage};
 
@@ -60,52 +63,73 @@ pub fn default_camera(bounds: ([f32; 3], [f32; 3])) -> Camera {
     }
 }
 
-/// Draws the patches as seen from `camera` into a `width × height` image.
-pub fn render_patches(patches: &[Patch], camera: &Camera, width: u32, height: u32) -> RgbImage {
+/// The colour of pieces that belong to no kept patch.
+pub const UNOWNED: [u8; 3] = [96, 24, 96];
+
+/// Draws the pieces as seen from `camera` into a `width × height` image,
+/// each in the colour of its patch (`owner[k]`, an index into `patches`, or
+/// `None`: [`UNOWNED`]).
+pub fn render_pieces(
+    pieces: &[PieceGeo],
+    owner: &[Option<u32>],
+    patches: &[Patch],
+    camera: &Camera,
+    width: u32,
+    height: u32,
+) -> RgbImage {
     let view = View::new(camera);
     let (w, h) = (width as usize, height as usize);
     let mut depth = vec![f64::INFINITY; w * h];
     let mut img = RgbImage::from_pixel(width, height, Rgb([24, 24, 32]));
     let aspect = width as f64 / height as f64;
-    for p in patches {
-        // The patch's square, in its plane, of side sqrt(area).
-        let frame = p.frame();
-        let n = frame.n;
-        let corners: Vec<[f64; 3]> = CORNERS
+    for (piece, owner) in pieces.iter().zip(owner) {
+        let Some(first) = piece.poly.first() else {
+            continue;
+        };
+        // One-sided: the back of a wall is not drawn.
+        let to_eye = normalize(sub(view.eye, *first));
+        let facing = dot(piece.normal, to_eye);
+        if facing <= 0.0 {
+            continue;
+        }
+        // Screen positions; skip pieces reaching behind the eye.
+        let screen: Option<Vec<[f64; 3]>> = piece
+            .poly
             .iter()
-            .map(|&(a, b)| p.point(&frame, a, b))
+            .map(|c| {
+                let d = sub(*c, view.eye);
+                let z = dot(d, view.forward);
+                (z > 1e-6).then(|| {
+                    let x = dot(d, view.right) * view.focal / (z * aspect);
+                    let y = dot(d, view.up) * view.focal / z;
+                    [(x + 1.0) * 0.5 * w as f64, (1.0 - y) * 0.5 * h as f64, z]
+                })
+            })
             .collect();
-        // Screen positions; skip patches reaching behind the eye.
-        let mut screen = [[0.0f64; 3]; 4];
-        let mut visible = true;
-        for (s, c) in screen.iter_mut().zip(&corners) {
-            let d = sub(*c, view.eye);
-            let z = dot(d, view.forward);
-            if z <= 1e-6 {
-                visible = false;
-                break;
+        let Some(screen) = screen else {
+            continue;
+        };
+        let colour = match owner.and_then(|m| patches.get(m as usize).map(|p| (m, p))) {
+            None => UNOWNED,
+            Some((m, p)) => {
+                // Albedo lit by a headlight so orientation reads, each patch
+                // a little lighter or darker (hashed) so regions show.
+                let tint = 0.8 + 0.2 * ((m.wrapping_mul(2_654_435_761) >> 24) as f64 / 255.0);
+                let shade = (0.35 + 0.65 * facing) * tint;
+                let emissive = p.emission.iter().any(|&e| e > 0.0);
+                std::array::from_fn(|c| {
+                    let linear = if emissive { tint } else { p.albedo[c] * shade };
+                    (255.0 * linear.clamp(0.0, 1.0).powf(1.0 / 2.2)).round() as u8
+                })
             }
-            let x = dot(d, view.right) * view.focal / (z * aspect);
-            let y = dot(d, view.up) * view.focal / z;
-            *s = [(x + 1.0) * 0.5 * w as f64, (1.0 - y) * 0.5 * h as f64, z];
-        }
-        if !visible {
-            continue;
-        }
-        // Patches are one-sided: the back of a wall is not drawn.
-        let to_eye = normalize(sub(view.eye, p.centre));
-        if dot(n, to_eye) <= 0.0 {
-            continue;
-        }
-        // Albedo, lit by a headlight so orientation reads; emitters white.
-        let shade = 0.35 + 0.65 * dot(n, to_eye);
-        let emissive = p.emission.iter().any(|&e| e > 0.0);
-        let colour: [u8; 3] = std::array::from_fn(|c| {
-            let linear = if emissive { 1.0 } else { p.albedo[c] * shade };
-            (255.0 * linear.clamp(0.0, 1.0).powf(1.0 / 2.2)).round() as u8
-        });
-        for tri in [[0, 1, 2], [0, 2, 3]] {
-            fill_triangle(&mut img, &mut depth, tri.map(|i| screen[i]), colour);
+        };
+        for k in 1..screen.len().saturating_sub(1) {
+            fill_triangle(
+                &mut img,
+                &mut depth,
+                [screen[0], screen[k], screen[k + 1]],
+                colour,
+            );
         }
     }
     img

@@ -29,14 +29,42 @@
 //!   group is merged into the neighbour's, following `d` until a voxel whose
 //!   neighbour is open; this keeps the plate's area;
 //! - it holds geometry facing `−d`: a surface looks back at this one from
-//!   less than two voxels away (a box standing on the floor, or a gap the
-//!   grid cannot resolve); the group is dropped, counted and reported;
+//!   less than two voxels away (a column, a wall's other side, a box on the
+//!   floor); the group stays a patch, because it receives and reflects
+//!   light (the thesis's rule dropped it, which left Sponza's column sides
+//!   black), and is counted (`facing_back_groups`);
 //! - it holds only geometry perpendicular to `d`: a corner; the neighbour
 //!   does not hide the group, which becomes a patch.
 //!
-//! A closed solid standing on a surface without a modelled bottom face
-//! leaves patches under it; they see nothing and the form-factor stage
-//! removes them (row sum 0).
+//! Staircase merges join only groups whose surfaces are connected (below):
+//! a floor does not continue into the floor of the room above.
+//!
+//! **Connected surfaces.** The pieces of one voxel facing one way need not
+//! be one surface: the two sides of a wall thinner than a voxel give two
+//! floors in one voxel, stacked floors give two ceilings. Averaging them
+//! makes one patch that gathers light from both rooms and leaks it into
+//! the dark one. So a group is split into components: a piece joins the
+//! component of each of its [`NEAREST`] nearest pieces that it is
+//! *connected* to, that is, when the segment between their centroids,
+//! lifted [`CONNECT_LIFT`] voxels off their surfaces, crosses no triangle
+//! other than ones facing the same direction within [`CONNECT_OWN`] of an
+//! end (their own surface curving across the chord)
+//! ([`Bvh::surface_segment_clear`]). Components smaller than
+//! [`SMALL_COMPONENT`] voxel faces (relief: a moulding's step, a bit of
+//! ornament) join the nearest component they reach over a lift of
+//! [`RELIEF_LIFT`] voxels, so relief lower than that does not split a
+//! surface while a wall does. Each component becomes a patch (counted,
+//! `split_groups`).
+//!
+//! **Covered geometry.** A piece whose points have another surface within
+//! [`COVER_DISTANCE`] voxels in front of them, along their normal, is
+//! covered: the floor under a box without a bottom face, a ceiling behind a
+//! light panel, faces buried in a wall. It can neither receive nor send
+//! light, yet as part of a patch it would dilute the patch's albedo and
+//! area. Five points per piece (the centroid and four points towards its
+//! corners) are tested; a wholly covered piece is dropped (it keeps no
+//! patch), a partly covered one counts with its visible share of the area.
+//! Counted, and the covered area reported by direction.
 //!
 //! **Boundaries.** Voxel boundaries lie at integer multiples of the voxel
 //! size in world space, so a grid does not shift when the scene grows. A
