@@ -90,10 +90,13 @@ enum BenchCommand {
         #[arg(long, value_name = "FILE.json")]
         camera_lights: Option<PathBuf>,
         /// Paths per sample point.
-        #[arg(long, default_value_t = 256)]
+        #[arg(long, default_value_t = 128)]
         paths: usize,
-        /// Sample points per patch (1..=16).
-        #[arg(long, default_value_t = 4)]
+        /// Sample points per patch (1..=16), for the reference and for the
+        /// bake's direct light alike. All 16 by default: a patch's points
+        /// measure its mean over a region whose light varies (sun and
+        /// shadow), and 4 points leave that spatial sampling in the measure.
+        #[arg(long, default_value_t = 16)]
         points: usize,
         /// Also measure the first reflection (recomputes F).
         #[arg(long)]
@@ -277,7 +280,7 @@ struct BakeArgs {
     /// contour (contour integrals between patch squares).
     #[arg(long, value_name = "METHOD")]
     form_factors: Option<String>,
-    /// Rays per patch of the rays method (16..=1048576, default 4096).
+    /// Rays per patch of the rays method (16..=1048576, default 16384).
     #[arg(long, value_name = "N")]
     ff_rays_per_patch: Option<u32>,
     /// Form-factor emitter samples per side, contour method (1..=16, default 4).

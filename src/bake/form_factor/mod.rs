@@ -295,7 +295,8 @@ pub const MAX_RAYS_PER_PATCH: u32 = 1 << 20;
 pub struct FormFactorOptions {
     /// The method (default: rays from the real surfaces).
     pub method: FormFactorMethod,
-    /// Rays per patch of the rays method, 16..=2^20. Default 4096.
+    /// Rays per patch of the rays method, 16..=2^20. Default 16384
+    /// ([`rays`] module doc: the noise a smooth wall shows).
     pub rays_per_patch: u32,
     /// Emitter samples per side for near pairs (an `m × m` midpoint grid,
     /// `m ≤ samples`), 1..=16. Default 4.
@@ -319,7 +320,7 @@ impl Default for FormFactorOptions {
     fn default() -> Self {
         Self {
             method: FormFactorMethod::Rays,
-            rays_per_patch: 4096,
+            rays_per_patch: 16384,
             samples: 4,
             rays: 4,
             quadrature_tol: 1e-3,
