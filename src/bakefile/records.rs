@@ -52,6 +52,11 @@ impl std::fmt::Display for BouncesRecord {
 
 /// `OPTS`: the options that determine a bake's content, as resolved by the
 /// bake (the voxel size actually used, the codec actually chosen).
+/// The form-factor method of files that do not name one.
+fn contour() -> String {
+    "contour".into()
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OptionsRecord {
@@ -62,8 +67,11 @@ pub struct OptionsRecord {
     /// The voxel edge length used (scene units).
     pub voxel_size: f64,
     /// The form-factor method (`rays` or `contour`) and the rays per patch
-    /// of the rays method.
+    /// of the rays method. Files written before the rays method existed
+    /// have neither: they were baked with `contour` (and 0 rays).
+    #[serde(default = "contour")]
     pub ff_method: String,
+    #[serde(default)]
     pub ff_rays_per_patch: u32,
     /// Form-factor emitter samples per side, visibility rays per pair, and
     /// the quadrature's target relative error (contour method).
@@ -104,4 +112,21 @@ pub struct BakeInfo {
     pub h_error: Option<f64>,
     pub mesh_map_fallbacks: u64,
     pub mesh_map_unmapped: u64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn options_written_before_the_rays_method_read_as_contour() {
+        // The options record of a file baked before `ff_method` existed.
+        let old = r#"{"record_version":1,"target_patches":2000,"voxel_size":1.5,
+            "ff_samples":4,"ff_rays":4,"ff_quadrature_tol":0.001,"bounces":"inf",
+            "reorder":"greedy:2","codec":"bc1-log(top=0.04,L=auto,rgb9e5)",
+            "codec_choice":"fixed","error_lights":64,"error_lights_seed":1}"#;
+        let r: OptionsRecord = serde_json::from_str(old).expect("an old record reads");
+        assert_eq!(r.ff_method, "contour");
+        assert_eq!(r.ff_rays_per_patch, 0);
+    }
 }

@@ -170,7 +170,11 @@ pub fn run(
         let ffo = FormFactorOptions {
             method: crate::bake::form_factor::FormFactorMethod::parse(&rt.baked.options.ff_method)
                 .context("the bake's form-factor method")?,
-            rays_per_patch: rt.baked.options.ff_rays_per_patch,
+            // 0 in files from before the rays method (contour bakes).
+            rays_per_patch: match rt.baked.options.ff_rays_per_patch {
+                0 => FormFactorOptions::default().rays_per_patch,
+                r => r,
+            },
             samples: rt.baked.options.ff_samples,
             rays: rt.baked.options.ff_rays,
             quadrature_tol: rt.baked.options.ff_quadrature_tol,
