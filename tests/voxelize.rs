@@ -442,3 +442,55 @@ fn cornell_box_patches_are_physical() {
         "emitted power {power}, expected {expected}"
     );
 }
+
+#[test]
+fn covered_means_behind_a_back_face_or_in_a_thin_gap_never_facing_across_open_space() {
+    // A 2 × 2 ceiling at y = 0.5 facing down, voxel size 1, and under it:
+    let ceiling = quad(
+        [1.0, 0.5, 1.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        1.0,
+        1.0,
+        [0.7; 3],
+    );
+    let up = |y: f64| {
+        quad(
+            [1.0, y, 1.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+            1.0,
+            1.0,
+            [0.7; 3],
+        )
+    };
+    let down = |y: f64| {
+        quad(
+            [1.0, y, 1.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0],
+            1.0,
+            1.0,
+            [0.7; 3],
+        )
+    };
+    let covered = |quads: &[Quad]| -> f64 {
+        let scene = scene::load(&write_quads("covered", quads)).unwrap();
+        voxelize_at(&scene, 1.0, &Backend::Cpu)
+            .unwrap()
+            .stats
+            .covered_area
+    };
+    // a floor 0.3 voxels below, facing it across open space: nothing is
+    // covered (both see each other's front);
+    let open = covered(&[ceiling, up(0.2)]);
+    assert!(open < 1e-9, "covered {open}");
+    // a one-sided panel 0.3 voxels below, facing down: the ceiling sees its
+    // back and is covered, all 4 units² of it; the panel is not;
+    let behind = covered(&[ceiling, down(0.2)]);
+    assert!((behind - 4.0).abs() < 1e-6, "covered {behind}");
+    // a two-sided panel 0.02 voxels below (inside the gap): the ceiling and
+    // the panel's top face are both covered, the panel's bottom is not.
+    let gap = covered(&[ceiling, down(0.48), up(0.48)]);
+    assert!((gap - 8.0).abs() < 1e-6, "covered {gap}");
+}

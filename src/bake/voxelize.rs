@@ -56,14 +56,23 @@
 //! surface while a wall does. Each component becomes a patch (counted,
 //! `split_groups`).
 //!
-//! **Covered geometry.** A piece whose points have another surface within
-//! [`COVER_DISTANCE`] voxels in front of them, along their normal, is
-//! covered: the floor under a box without a bottom face, a ceiling behind a
-//! light panel, faces buried in a wall. It can neither receive nor send
-//! light, yet as part of a patch it would dilute the patch's albedo and
-//! area. Five points per piece (the centroid and four points towards its
-//! corners) are tested; a wholly covered piece is dropped (it keeps no
-//! patch), a partly covered one counts with its visible share of the area.
+//! **Covered geometry.** A piece's point is covered when, along its normal,
+//! the *back* of another surface lies within [`COVER_DISTANCE`] voxels (the
+//! point is inside a solid or behind a one-sided surface: the floor under a
+//! box without a bottom face, the ceiling above a one-sided light panel,
+//! faces buried in a wall), or any surface lies within [`COVER_GAP`] voxels
+//! (a gap too thin to pass light at this resolution: the top of a
+//! two-sided panel 1 cm under the ceiling). A covered piece can neither
+//! receive nor send light, yet as part of a patch it would dilute the
+//! patch's albedo and area. Front faces beyond the gap do not cover: they
+//! face the point across open space (a gallery floor under its vault), and
+//! dropping them (the first version, at half a voxel for any surface)
+//! removed 3.5 % of Sponza's visible area at 7.6 m voxels. [`COVER_POINTS`]
+//! points per piece, stratified by area (the R2 sequence in the fan
+//! triangle at each area quantile), are tested; a wholly covered piece is
+//! dropped (it keeps no patch), a partly covered one counts with its
+//! visible share of the area (five points, the first version, made a big
+//! floor piece with one point under a column lose a fifth of its area).
 //! Counted, and the covered area reported by direction.
 //!
 //! **Boundaries.** Voxel boundaries lie at integer multiples of the voxel
@@ -97,9 +106,17 @@ pub const CONNECT_LIFT: f64 = 1e-3;
 /// chord): a voxel's diagonal.
 pub const CONNECT_OWN: f64 = 1.732_050_807_568_877_2;
 
-/// A piece's point is covered when another surface lies within this many
-/// voxel sizes in front of it, along its normal (module doc).
+/// A piece's point is covered when the back of another surface lies
+/// within this many voxel sizes in front of it, along its normal (module
+/// doc, "Covered geometry").
 pub const COVER_DISTANCE: f64 = 0.5;
+
+/// Points tested per piece for covered geometry (module doc).
+pub const COVER_POINTS: usize = 16;
+
+/// A piece's point is covered when any other surface, front or back, lies
+/// within this many voxel sizes in front of it (module doc).
+pub const COVER_GAP: f64 = 0.05;
 
 /// Nearest pieces (or pairs of pieces) tested for connectivity.
 pub const NEAREST: usize = 4;
@@ -112,6 +129,45 @@ pub const SMALL_COMPONENT: f64 = 0.1;
 /// The lift, in voxel sizes, under which relief does not separate small
 /// components (module doc, "Connected surfaces").
 pub const RELIEF_LIFT: f64 = 0.25;
+
+/// `count` points on a convex polygon, stratified by area: point `s` in
+/// the fan triangle at the area quantile `(s + ½)/count`, placed there by
+/// the R2 sequence (Roberts 2018) folded into the triangle. Empty for a
+/// polygon without area.
+pub fn stratified_points(poly: &[[f64; 3]], count: usize) -> Vec<[f64; 3]> {
+    const R2: [f64; 2] = [0.754_877_666_246_692_7, 0.569_840_290_998_053_2];
+    let mut fans: Vec<(usize, f64)> = Vec::new();
+    let mut total = 0.0;
+    for t in 1..poly.len().saturating_sub(1) {
+        let a =
+            0.5 * crate::core::math::norm(cross(sub(poly[t], poly[0]), sub(poly[t + 1], poly[0])));
+        if a > 0.0 {
+            total += a;
+            fans.push((t, total));
+        }
+    }
+    if fans.is_empty() {
+        return Vec::new();
+    }
+    (0..count)
+        .map(|s| {
+            let q = (s as f64 + 0.5) / count as f64 * total;
+            let f = fans.partition_point(|x| x.1 < q).min(fans.len() - 1);
+            let t = fans[f].0;
+            let (mut u, mut v) = (
+                (0.5 + R2[0] * s as f64).fract(),
+                (0.5 + R2[1] * s as f64).fract(),
+            );
+            if u + v > 1.0 {
+                u = 1.0 - u;
+                v = 1.0 - v;
+            }
+            std::array::from_fn(|k| {
+                poly[0][k] + u * (poly[t][k] - poly[0][k]) + v * (poly[t + 1][k] - poly[0][k])
+            })
+        })
+        .collect()
+}
 
 /// The kernel source, embedded.
 pub const KERNEL_SOURCE: &str = include_str!("../../kernels/voxelize.cl");
@@ -616,6 +672,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
     // piece with another surface within COVER_DISTANCE voxels in front.
     let coords = grid_coords(scene, &grid);
     let cover = COVER_DISTANCE * grid.size;
+    let gap = COVER_GAP * grid.size;
     let covered: Vec<f64> = kept
         .par_iter()
         .map(|&(_, _, tri, i)| {
@@ -625,20 +682,21 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
                 grid.origin[q] + grid.size * (p.voxel[q] as f64 + p.centroid[q])
             });
             let poly = piece_polygon(&grid, &coords[tri as usize], p.voxel);
-            let step = (poly.len() / 4).max(1);
-            let mut points = vec![c];
-            points.extend(
-                poly.iter()
-                    .step_by(step)
-                    .take(4)
-                    .map(|v| std::array::from_fn(|q| c[q] + 0.7 * (v[q] - c[q]))),
-            );
+            let mut points = stratified_points(&poly, COVER_POINTS);
+            if points.is_empty() {
+                points.push(c);
+            }
             let hidden = points
                 .iter()
                 .filter(|x| {
                     let o: [f64; 3] = std::array::from_fn(|q| x[q] + lift * n[q] - shift[q]);
-                    bvh.any_hit(o, n.map(|v| v * cover), |k, _| bvh.order[k as usize] == tri)
-                        .is_some()
+                    // Ignored: the piece's own triangle, and front faces
+                    // (surfaces facing this point) beyond the gap.
+                    bvh.any_hit(o, n.map(|v| v * cover), |k, t| {
+                        let hit = bvh.order[k as usize];
+                        hit == tri || (dot(normals[hit as usize], n) < 0.0 && t * cover > gap)
+                    })
+                    .is_some()
                 })
                 .count();
             hidden as f64 / points.len() as f64
