@@ -217,6 +217,13 @@ pub fn run(
                 .map(|j| std::array::from_fn(|c| r[j][c] - r1m[j][c]))
                 .collect();
             report.later_bounces = Some(compare(&areas, &later_h, &later_r, &se));
+        } else {
+            // A bake from an older version: today's voxelizer makes other
+            // patches, so its F cannot be matched to the file's rows.
+            eprintln!(
+                "first reflection not measured: the voxelizer now makes {} patches at this voxel size where the bake has {n} (a bake from an older version)",
+                ff.n
+            );
         }
     }
     report.seconds_reference = start.elapsed().as_secs_f64();
