@@ -99,6 +99,10 @@ struct SparseRt {
     /// (tile column, first entry) of each block; a block's entries end
     /// where the next block's start (`entries` closes the list).
     blocks: Vec<(u16, u32)>,
+    /// Per block, where each of its groups of 4 columns starts (`tile / 4 +
+    /// 1` entry indices, the last closing the block): a tile with some
+    /// active column group reads only the entries of its active groups.
+    group_start: Vec<u32>,
     /// Per entry: row within the tile (high byte) and column within it.
     pos: Vec<u16>,
     /// RGB9E5 words (precision RGB9E5) or values (`channels` per entry).
@@ -265,13 +269,14 @@ impl CompressedGather {
             }
         }
         // The sparse part re-laid by tile (row of tiles, then tile column,
-        // then row and column), so that a skipped tile skips its entries'
-        // memory too.
-        let mut order: Vec<(usize, usize, usize, u32, usize)> = Vec::with_capacity(sp.len());
+        // then group of 4 columns, then row and column), so that a skipped
+        // tile or column group skips its entries' memory too (the tile
+        // edge is a multiple of 4, so groups do not straddle tiles).
+        let mut order: Vec<(usize, usize, usize, usize, u32, usize)> = Vec::with_capacity(sp.len());
         for (i, w) in sp.row_ptr.windows(2).enumerate() {
             for k in w[0] as usize..w[1] as usize {
                 let j = sp.cols[k];
-                order.push((i / tile, j as usize / tile, i, j, k));
+                order.push((i / tile, j as usize / tile, j as usize / 4, i, j, k));
             }
         }
         order.sort_unstable();
@@ -280,9 +285,20 @@ impl CompressedGather {
         let mut pos = Vec::with_capacity(order.len());
         let (mut packed, mut values) = (Vec::new(), Vec::new());
         let ch = e.channels;
-        for (idx, &(tr, tc, i, j, k)) in order.iter().enumerate() {
+        let gpt = tile / 4;
+        let mut group_start: Vec<u32> = Vec::new();
+        for (idx, &(tr, tc, g, i, j, k)) in order.iter().enumerate() {
             if idx == 0 || order[idx - 1].0 != tr || order[idx - 1].1 != tc {
+                if !blocks.is_empty() {
+                    group_start.resize(blocks.len() * (gpt + 1), idx as u32);
+                }
                 blocks.push((tc as u16, idx as u32));
+            }
+            // Groups of this block up to g start here at the latest.
+            let base = (blocks.len() - 1) * (gpt + 1);
+            let gl = g - tc * gpt;
+            while group_start.len() <= base + gl {
+                group_start.push(idx as u32);
             }
             block_start[tr + 1] = blocks.len() as u32;
             pos.push((((i % tile) as u16) << 8) | (j as usize % tile) as u16);
@@ -296,10 +312,12 @@ impl CompressedGather {
         for r in 1..=tps {
             block_start[r] = block_start[r].max(block_start[r - 1]);
         }
+        group_start.resize(blocks.len() * (gpt + 1), order.len() as u32);
         blocks.push((u16::MAX, order.len() as u32));
         let sparse = SparseRt {
             block_start,
             blocks,
+            group_start,
             pos,
             packed,
             values,
@@ -517,34 +535,38 @@ impl CompressedGather {
         } else {
             2 + 4 * sp.channels as u64
         };
+        let gpt = tile / 4;
         for bi in sp.block_start[tr] as usize..sp.block_start[tr + 1] as usize {
-            let (tc, first) = sp.blocks[bi];
-            let end = sp.blocks[bi + 1].1 as usize;
-            let tc = tc as usize;
+            let tc = sp.blocks[bi].0 as usize;
             if !active.tile[tc] {
                 continue;
             }
-            stats.bytes_read += (end - first as usize) as u64 * entry_bytes;
-            for e in first as usize..end {
-                let p = sp.pos[e];
-                let (r, j) = ((p >> 8) as usize, tc * tile + (p & 0xff) as usize);
-                if !active.group[j / 4] {
+            let starts = &sp.group_start[bi * (gpt + 1)..(bi + 1) * (gpt + 1)];
+            stats.bytes_read += 4 * (gpt as u64 + 1);
+            for (gl, w) in starts.windows(2).enumerate() {
+                let (a, b) = (w[0] as usize, w[1] as usize);
+                if a == b || !active.group[tc * gpt + gl] {
                     continue;
                 }
-                let v: [f32; 3] = if sp.rgb9e5 {
-                    let p = sp.packed[e];
-                    let f = &sp.exp_factor[(p >> 27) as usize];
-                    [
-                        (p & 0x1ff) as f32 * f[0],
-                        ((p >> 9) & 0x1ff) as f32 * f[1],
-                        ((p >> 18) & 0x1ff) as f32 * f[2],
-                    ]
-                } else {
-                    let s = &sp.values[e * sp.channels..(e + 1) * sp.channels];
-                    std::array::from_fn(|c| s[c.min(sp.channels - 1)])
-                };
-                for (oc, o) in rows[r].iter_mut().enumerate().take(out_ch) {
-                    *o += v[oc] * b0[oc][j];
+                stats.bytes_read += (b - a) as u64 * entry_bytes;
+                for e in a..b {
+                    let p = sp.pos[e];
+                    let (r, j) = ((p >> 8) as usize, tc * tile + (p & 0xff) as usize);
+                    let v: [f32; 3] = if sp.rgb9e5 {
+                        let p = sp.packed[e];
+                        let f = &sp.exp_factor[(p >> 27) as usize];
+                        [
+                            (p & 0x1ff) as f32 * f[0],
+                            ((p >> 9) & 0x1ff) as f32 * f[1],
+                            ((p >> 18) & 0x1ff) as f32 * f[2],
+                        ]
+                    } else {
+                        let s = &sp.values[e * sp.channels..(e + 1) * sp.channels];
+                        std::array::from_fn(|c| s[c.min(sp.channels - 1)])
+                    };
+                    for (oc, o) in rows[r].iter_mut().enumerate().take(out_ch) {
+                        *o += v[oc] * b0[oc][j];
+                    }
                 }
             }
         }
@@ -643,6 +665,12 @@ type RowArgs<'a> = (
     &'a [Bc1Table; 3],
 );
 
+/// How many active block columns ahead [`bc1_row_avx512`] prefetches:
+/// enough lines in flight to cover a memory latency of ~100 ns at the
+/// ~10 ns one column takes to decode.
+#[cfg(target_arch = "x86_64")]
+const PREFETCH_AHEAD: usize = 16;
+
 /// A BC1 row of tiles of `BH` block rows on AVX-512: per block, the 16
 /// indices in one vector, and per channel one permute of the 4-entry
 /// palette and one fused multiply-add; each block column times its 4 values
@@ -664,7 +692,14 @@ unsafe fn bc1_row_avx512<const BH: usize>(
         }
     }
     let (v0, v1, v2) = (&tables[0].values, &tables[1].values, &tables[2].values);
-    for &(off, c0) in cols {
+    for (ci, &(off, c0)) in cols.iter().enumerate() {
+        // Skipped columns leave the active ones scattered: each is one
+        // 64-byte line the hardware prefetcher does not predict, and the
+        // long body per column lets few loads overlap. Ask for the column
+        // PREFETCH_AHEAD places on now (a hint; no effect on results).
+        if let Some(&(next, _)) = cols.get(ci + PREFETCH_AHEAD) {
+            _mm_prefetch::<_MM_HINT_T0>(dense.as_ptr().add(next as usize) as *const i8);
+        }
         let c0 = c0 as usize;
         let b: [__m512; 3] = std::array::from_fn(|c| {
             let mut q = [0.0f32; 4];
