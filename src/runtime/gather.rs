@@ -10,7 +10,11 @@
 //! each block column of a tile is contiguous (64 bytes for a BC1 tile, one
 //! cache line), so a skipped group skips memory, not just arithmetic; a
 //! tile whose 8 block columns are all inactive is not touched at all.
-//! Sparse entries of inactive columns are not multiplied. A grey matrix
+//! The sparse part is re-laid at load by tile and, within a tile, by
+//! group of 4 columns, with each group's start stored, so sparse entries
+//! of inactive groups are not read either. Active block columns scattered
+//! by skipping are prefetched a few columns ahead (the hardware prefetcher
+//! predicts only the contiguous case). A grey matrix
 //! (one stored channel) is decoded once for the three channels of `B0`;
 //! when `B0`'s channels are equal too, one product serves all three.
 //! Skipping changes no bit of the result: a skipped term is `v · 0`, and
