@@ -494,3 +494,44 @@ fn covered_means_behind_a_back_face_or_in_a_thin_gap_never_facing_across_open_sp
     let gap = covered(&[ceiling, down(0.48), up(0.48)]);
     assert!((gap - 8.0).abs() < 1e-6, "covered {gap}");
 }
+
+#[test]
+fn covered_means_enclosed_at_any_distance_but_not_under_an_open_table() {
+    // A 4 × 4 floor, voxel size 0.5, and on it a 2 × 2 box three voxels
+    // tall without a bottom face (its top and sides face outwards): the
+    // floor under it sees only the box's inside, the back of its faces,
+    // however far: covered, all 4 units² of it, and nothing else is.
+    let floor = quad(
+        [2.0, 0.0, 2.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 0.0],
+        2.0,
+        2.0,
+        [0.7; 3],
+    );
+    let face =
+        |c: [f64; 3], u: [f64; 3], v: [f64; 3], hu: f64, hv: f64| quad(c, u, v, hu, hv, [0.7; 3]);
+    let (x, y, z) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+    let top = face([2.0, 1.5, 2.0], z, x, 1.0, 1.0);
+    let sides = [
+        face([3.0, 0.75, 2.0], y, z, 0.75, 1.0), // +x
+        face([1.0, 0.75, 2.0], z, y, 1.0, 0.75), // −x
+        face([2.0, 0.75, 3.0], x, y, 1.0, 0.75), // +z
+        face([2.0, 0.75, 1.0], y, x, 0.75, 1.0), // −z
+    ];
+    let covered = |quads: &[Quad]| -> f64 {
+        let scene = scene::load(&write_quads("enclosed", quads)).unwrap();
+        voxelize_at(&scene, 0.5, &Backend::Cpu)
+            .unwrap()
+            .stats
+            .covered_area
+    };
+    let mut boxed = vec![floor, top];
+    boxed.extend_from_slice(&sides);
+    let under_box = covered(&boxed);
+    assert!((under_box - 4.0).abs() < 1e-6, "covered {under_box}");
+    // The same top alone, a table without legs or sides: the floor under
+    // it sees the room around (here: open space), so nothing is covered.
+    let under_table = covered(&[floor, top]);
+    assert!(under_table < 1e-9, "covered {under_table}");
+}

@@ -32,7 +32,7 @@
 
 use super::error::BakeError;
 use super::pieces::{self, PieceGeo};
-use super::voxelize::Voxelization;
+use super::voxelize::{Cover, Voxelization};
 use crate::bakefile::surface::{
     offset_slot, MapPiece, PatchSamples, SurfaceMap, NONE, OFFSETS, PIECE_SUBSTITUTE,
     SAMPLES_PER_PATCH,
@@ -126,10 +126,20 @@ pub fn build(
         }
     }
 
+    let bvh = Bvh::build(
+        &scene.positions,
+        &scene.triangles,
+        super::form_factor::shift_of(&grid),
+    );
+    let normals: Vec<[f64; 3]> = (0..scene.triangles.len())
+        .map(|t| scene.triangle_normal(t))
+        .collect();
+    let cover = Cover::new(scene, &grid, &bvh, &normals);
+
     // Sample points.
     let per_patch: Vec<Samples> = (0..n)
         .into_par_iter()
-        .map(|m| sample_patch(vox, vox_of[m], &by_patch[m], &geo))
+        .map(|m| sample_patch(vox, vox_of[m], &by_patch[m], &geo, &cover))
         .collect();
     let mut samples = PatchSamples::default();
     for (pts, fallback) in &per_patch {
@@ -140,11 +150,6 @@ pub fn build(
         }
     }
 
-    let bvh = Bvh::build(
-        &scene.positions,
-        &scene.triangles,
-        super::form_factor::shift_of(&grid),
-    );
     let vis = Visibility {
         bvh: &bvh,
         size: grid.size,
@@ -281,7 +286,13 @@ fn in_grid(grid: &Grid, v: [i64; 3]) -> Option<[u32; 3]> {
 
 /// The sample points of one patch (module doc) and whether the centroid
 /// fallback was needed.
-fn sample_patch(vox: &Voxelization, i: usize, pieces: &[usize], geo: &[PieceGeo]) -> Samples {
+fn sample_patch(
+    vox: &Voxelization,
+    i: usize,
+    pieces: &[usize],
+    geo: &[PieceGeo],
+    cover: &Cover,
+) -> Samples {
     let patch = &vox.patches[i];
     let f = patch.frame();
     // Pieces projected onto the patch plane (2D, relative to the centre),
@@ -291,6 +302,9 @@ fn sample_patch(vox: &Voxelization, i: usize, pieces: &[usize], geo: &[PieceGeo]
         orient: f64,
         g: &'a PieceGeo,
         cos: f64,
+        /// The piece's triangle when the piece is partly covered: a point
+        /// on its covered part is no sample (voxelize, "Covered geometry").
+        partial: Option<u32>,
     }
     let mut projs = Vec::new();
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
@@ -320,11 +334,13 @@ fn sample_patch(vox: &Voxelization, i: usize, pieces: &[usize], geo: &[PieceGeo]
             area2 += p[0] * q[1] - q[0] * p[1];
         }
         if area2.abs() > 0.0 {
+            let piece = &vox.pieces[k];
             projs.push(Proj {
                 pts,
                 orient: area2.signum(),
                 g,
                 cos,
+                partial: (piece.visible < 1.0).then_some(piece.tri),
             });
         }
     }
@@ -363,7 +379,14 @@ fn sample_patch(vox: &Voxelization, i: usize, pieces: &[usize], geo: &[PieceGeo]
             }
             if let Some((h, pr)) = best {
                 let base = add(patch.centre, add(scale(f.u, x[0]), scale(f.v, x[1])));
-                out.push((add(base, scale(f.n, h)), pr.g.normal));
+                let y = add(base, scale(f.n, h));
+                if pr
+                    .partial
+                    .is_some_and(|tri| cover.covered(y, pr.g.normal, tri))
+                {
+                    continue;
+                }
+                out.push((y, pr.g.normal));
             }
         }
     }

@@ -207,6 +207,9 @@ pub struct FormFactorStats {
     pub rays_escaped: u64,
     pub rays_back_face: u64,
     pub rays_unowned: u64,
+    /// Rays method: origins drawn on the covered part of a partly covered
+    /// piece, not cast (not in `rays_cast`).
+    pub rays_covered: u64,
     /// Rays method: the area-weighted fraction of the real hemisphere that
     /// meets front faces, and the area-weighted mean row sum of `F`.
     pub front_fraction: f64,
@@ -232,12 +235,13 @@ impl fmt::Display for FormFactorStats {
             )?;
             writeln!(
                 f,
-                "  rays: {} cast ({:.3e} rays/s): {} left the scene, {} met a back face, {} a piece with no patch",
+                "  rays: {} cast ({:.3e} rays/s): {} left the scene, {} met a back face, {} a piece with no patch; {} origins on covered parts of pieces not cast",
                 self.rays_cast,
                 self.rays_per_second,
                 self.rays_escaped,
                 self.rays_back_face,
-                self.rays_unowned
+                self.rays_unowned,
+                self.rays_covered
             )?;
             writeln!(
                 f,

@@ -43,7 +43,7 @@
 use super::{FormFactorOptions, FormFactorStats, FormFactors, ROW_SUM_TOL};
 use crate::bake::error::BakeError;
 use crate::bake::pieces::{self, PieceGeo, PieceLookup};
-use crate::bake::voxelize::Voxelization;
+use crate::bake::voxelize::{Cover, Voxelization};
 use crate::core::bvh::Bvh;
 use crate::core::math::{add, dot, normalize, scale, sub, tangent_basis, SplitMix64};
 use crate::core::scene::Scene;
@@ -77,6 +77,9 @@ struct Fan {
     normal: [f64; 3],
     /// Cumulative area up to and including this triangle.
     cum: f64,
+    /// The piece's triangle, when the piece is partly covered (its ray
+    /// origins are then tested, voxelize's `Cover`).
+    partial: Option<u32>,
 }
 
 /// Ray counts of one emitter.
@@ -86,6 +89,19 @@ struct RowCounts {
     back: u64,
     unowned: u64,
     owned: u64,
+    /// Origins on the covered part of a partly covered piece, not cast:
+    /// the piece stands for its visible share only (voxelize, "Covered
+    /// geometry"), and rays from its covered part would meet the solid it
+    /// is hidden in. The row is over the rays cast.
+    covered: u64,
+}
+
+impl RowCounts {
+    /// Rays cast of the `rays` drawn (at least 1, so an all-covered row,
+    /// which has no counts, divides by something).
+    fn cast(&self, rays: usize) -> f64 {
+        (rays as u64).saturating_sub(self.covered).max(1) as f64
+    }
 }
 
 /// The form factors of `vox`'s patches by rays from their pieces (module
@@ -104,6 +120,10 @@ pub fn form_factors(
     let lookup = PieceLookup::new(vox, scene.triangles.len());
     let shift = super::shift_of(&vox.grid);
     let bvh = Bvh::build(&scene.positions, &scene.triangles, shift);
+    let normals: Vec<[f64; 3]> = (0..scene.triangles.len())
+        .map(|t| scene.triangle_normal(t))
+        .collect();
+    let cover = Cover::new(scene, &vox.grid, &bvh, &normals);
     let (lo, hi) = scene.bounds();
     let extent = (0..3)
         .map(|a| (hi[a] - lo[a]) as f64)
@@ -133,6 +153,7 @@ pub fn form_factors(
                     offset,
                     far,
                     rays,
+                    &cover,
                     row,
                 )
             })
@@ -157,27 +178,29 @@ pub fn form_factors(
         stats.rays_escaped += r.escaped;
         stats.rays_back_face += r.back;
         stats.rays_unowned += r.unowned;
+        stats.rays_covered += r.covered;
     }
+    stats.rays_cast -= stats.rays_covered;
     // Area-weighted fraction of the hemisphere meeting front faces, and the
     // part of it owned by a patch (the row sums' target).
     let atot: f64 = areas.iter().sum::<f64>().max(1e-300);
     stats.front_fraction = rows
         .iter()
         .zip(&areas)
-        .map(|(r, a)| a * (r.owned + r.unowned) as f64 / rays as f64)
+        .map(|(r, a)| a * (r.owned + r.unowned) as f64 / r.cast(rays))
         .sum::<f64>()
         / atot;
     let target: Vec<f64> = rows
         .iter()
         .zip(&areas)
-        .map(|(r, a)| a * r.owned as f64 / rays as f64)
+        .map(|(r, a)| a * r.owned as f64 / r.cast(rays))
         .collect();
     // G = A_i c_ij / N, symmetrised (f64).
     let mut g = vec![0.0f64; n * n];
     g.par_chunks_mut(n).enumerate().for_each(|(i, row)| {
         for j in 0..n {
-            let gij = areas[i] * counts[i * n + j] as f64 / rays as f64;
-            let gji = areas[j] * counts[j * n + i] as f64 / rays as f64;
+            let gij = areas[i] * counts[i * n + j] as f64 / rows[i].cast(rays);
+            let gji = areas[j] * counts[j * n + i] as f64 / rows[j].cast(rays);
             row[j] = 0.5 * (gij + gji);
         }
     });
@@ -214,6 +237,7 @@ fn emit(
     offset: f64,
     far: f64,
     rays: usize,
+    cover: &Cover,
     row: &mut [f32],
 ) -> RowCounts {
     let mut c = RowCounts::default();
@@ -227,12 +251,14 @@ fn emit(
                 0.5 * crate::core::math::norm(crate::core::math::cross(sub(b, a), sub(cc, a)));
             if area > 0.0 {
                 total += area;
+                let piece = &vox.pieces[k];
                 fans.push(Fan {
                     a,
                     b,
                     c: cc,
                     normal: g.normal,
                     cum: total,
+                    partial: (piece.visible < 1.0).then_some(piece.tri),
                 });
             }
         }
@@ -262,6 +288,10 @@ fn emit(
         }
         let x = add(t.a, add(scale(sub(t.b, t.a), u), scale(sub(t.c, t.a), v)));
         let n = t.normal;
+        if t.partial.is_some_and(|tri| cover.covered(x, n, tri)) {
+            c.covered += 1;
+            continue;
+        }
         let d = cosine_direction(n, r[2], r[3]);
         let o = sub(add(x, scale(n, offset)), shift);
         match bvh.closest_hit(o, scale(d, far)) {
