@@ -419,19 +419,37 @@ fn cornell_box_patches_are_physical() {
             .iter()
             .all(|&a| (0.0..=albedo_max + 1e-12).contains(&a)));
     }
-    // The Cornell blocks have no bottom faces, and every surface meets
-    // others only at corners, which the neighbour rule keeps: all area is
-    // kept, none dropped (before the corner rule, 16 % was lost).
-    // Slivers below MIN_PIECE_AREA (reported) account for the rest, up to
-    // f32 rounding: the scene's area and the grid coordinates come from the
-    // f32 vertex positions by different arithmetic (relative f32 epsilon).
+    // Every surface meets others only at corners, which the neighbour rule
+    // keeps (before the corner rule, 16 % was lost). The Cornell blocks
+    // have no bottom faces: the floor under them is enclosed by their
+    // insides, covered, and reported facing +y; its area is the blocks'
+    // footprints (27,633 and 27,626.5 mm² from the published vertices),
+    // within the 16-points-and-corners sampling of the pieces the blocks'
+    // walls cut (about 70 at this voxel size, each off by a share of at most
+    // 1/20 of a 400 mm² face, so 3 % in all is far outside chance). Kept,
+    // covered and slivers below MIN_PIECE_AREA make up the scene, up to f32
+    // rounding: the scene's area and the grid coordinates come from the f32
+    // vertex positions by different arithmetic (relative f32 epsilon).
     let kept = v.stats.patch_area / v.stats.scene_area;
-    let with_slivers = (v.stats.patch_area + v.stats.sliver_area) / v.stats.scene_area;
+    let all =
+        (v.stats.patch_area + v.stats.sliver_area + v.stats.covered_area) / v.stats.scene_area;
     assert!(
-        (with_slivers - 1.0).abs() < f32::EPSILON as f64,
-        "kept {kept} of the area, {with_slivers} with slivers"
+        (all - 1.0).abs() < 8.0 * f32::EPSILON as f64,
+        "kept {kept} of the area, {all} with slivers and covered"
     );
-    assert!(kept > 1.0 - 1e-6, "kept {kept}");
+    let footprints = 27_633.0 + 27_626.5;
+    let up = v.stats.covered_area_per_direction[Direction::PosY as usize];
+    assert!(
+        (up / footprints - 1.0).abs() < 0.03,
+        "covered facing +y {up}, the blocks stand on {footprints}"
+    );
+    // Elsewhere at most specks where a piece's corner point lands on an
+    // edge of the lamp (about 1 mm² of ceiling beside it).
+    assert!(
+        (v.stats.covered_area - up).abs() < 1e-3 * footprints,
+        "only the floor is covered: {:?}",
+        v.stats.covered_area_per_direction
+    );
     assert_eq!(v.stats.covered_groups, 0);
     // Emitted power is conserved: Σ E_p A_p over patches equals Ke × the
     // light quad's area (130 mm × 105 mm), up to f64 rounding.

@@ -351,10 +351,27 @@ impl<'a> Cover<'a> {
         let near = bvh
             .any_hit(o, n.map(|v| v * cover), |k, t| {
                 let hit = bvh.order[k as usize];
-                hit == tri || (dot(normals[hit as usize], n) < 0.0 && t * cover > gap)
+                hit == tri
+                    || (dot(normals[hit as usize], n) < 0.0 && t * cover > gap)
+                    || (dot(normals[hit as usize], n) > 0.0 && self.front_at(o, n, t * cover, tri))
             })
             .is_some();
         near || self.enclosed(o, n, tri)
+    }
+
+    /// Whether a surface facing back along the unit direction `d` from `o`
+    /// (shifted) crosses it within `lift` of the distance `t`: the other
+    /// side of a two-sided surface modelled as two coincident triangles,
+    /// which makes the back face found there no back at all.
+    fn front_at(&self, o: [f64; 3], d: [f64; 3], t: f64, tri: u32) -> bool {
+        let (bvh, normals) = (self.bvh, self.normals);
+        let e = self.lift;
+        let start: [f64; 3] = std::array::from_fn(|q| o[q] + (t - e) * d[q]);
+        bvh.any_hit(start, d.map(|v| v * 2.0 * e), |k, _| {
+            let hit = bvh.order[k as usize];
+            hit == tri || dot(normals[hit as usize], d) >= 0.0
+        })
+        .is_some()
     }
 
     /// Every direction of a fixed fan around the normal meets the back of a
@@ -372,9 +389,11 @@ impl<'a> Cover<'a> {
             };
             self.bvh
                 .closest_hit(o, d.map(|v| v * self.reach))
-                .is_some_and(|(leaf, _)| {
+                .is_some_and(|(leaf, t)| {
                     let hit = self.bvh.order[leaf as usize];
-                    hit != tri && dot(self.normals[hit as usize], d) > 0.0
+                    hit != tri
+                        && dot(self.normals[hit as usize], d) > 0.0
+                        && !self.front_at(o, d, t * self.reach, tri)
                 })
         })
     }
@@ -769,19 +788,28 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
     // piece with another surface within COVER_DISTANCE voxels in front.
     let coords = grid_coords(scene, &grid);
     let cover_test = Cover::new(scene, &grid, &bvh, &normals);
-    // Per piece: the covered share of its points, and where a part of it
-    // is covered, its first visible point, which stands for the piece in
-    // the connectivity tests below (a floor triangle reaching under a box
-    // belongs with the floor outside it, where it is seen).
-    let covered: Vec<(f64, Option<[f64; 3]>)> = kept
+    // Per piece: the covered share of its points, and the point that
+    // stands for it in the connectivity tests below: its polygon's vertex
+    // mean (from the host's grid coordinates, the same on every backend),
+    // or where a part of it is covered, its first visible point (a floor
+    // triangle reaching under a box belongs with the floor outside it,
+    // where it is seen).
+    let covered: Vec<(f64, [f64; 3])> = kept
         .par_iter()
         .map(|&(_, _, tri, i)| {
             let p = &pieces[i];
             let n = normals[tri as usize];
-            let c: [f64; 3] = std::array::from_fn(|q| {
-                grid.origin[q] + grid.size * (p.voxel[q] as f64 + p.centroid[q])
-            });
+            // The polygon's vertex mean, from the host's grid coordinates
+            // (not the kernel's centroid), so both backends test the same
+            // points.
             let poly = piece_polygon(&grid, &coords[tri as usize], p.voxel);
+            let c: [f64; 3] = if poly.is_empty() {
+                std::array::from_fn(|q| {
+                    grid.origin[q] + grid.size * (p.voxel[q] as f64 + p.centroid[q])
+                })
+            } else {
+                std::array::from_fn(|q| poly.iter().map(|v| v[q]).sum::<f64>() / poly.len() as f64)
+            };
             let mut points = stratified_points(&poly, COVER_POINTS);
             if points.is_empty() {
                 points.push(c);
@@ -803,7 +831,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
                 .collect();
             let share = hidden.iter().filter(|&&h| h).count() as f64 / points.len() as f64;
             let seen = hidden.iter().position(|&h| !h).map(|k| points[k]);
-            (share, if share > 0.0 { seen } else { None })
+            (share, if share > 0.0 { seen.unwrap_or(c) } else { c })
         })
         .collect();
     let mut hidden_pieces: Vec<OwnedPiece> = Vec::new();
@@ -883,8 +911,8 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         let run: Vec<(Acc, [f64; 3], [f64; 3])> = (a..b)
             .map(|idx| {
                 let (_, _, tri, i) = kept[idx];
-                let (acc, c) = piece_acc(i, tri, visible_share[idx]);
-                (acc, visible_point[idx].unwrap_or(c), normals[tri as usize])
+                let (acc, _) = piece_acc(i, tri, visible_share[idx]);
+                (acc, visible_point[idx], normals[tri as usize])
             })
             .collect();
         // Union-find over the run.
