@@ -47,7 +47,8 @@
 //!    count it.
 //! 2. [`bake::voxelize`]: voxel patches ([`core::patch`]) — one per occupied
 //!    voxel and open axis direction, in the mean plane of its geometry, with
-//!    that geometry's projected area (`kernels/voxelize.cl`).
+//!    that geometry's projected area (`kernels/voxelize.cl`); what cannot be
+//!    seen (covered points: [`bake::cover`]) is in no patch.
 //! 3. [`bake::form_factor`]: form factors `F` between patches with
 //!    visibility (`kernels/form_factor.cl`, a BVH of the original
 //!    triangles, [`core::bvh`]).

@@ -12,6 +12,7 @@
 
 pub mod cache;
 pub mod config;
+pub mod cover;
 pub mod encode;
 pub mod error;
 pub mod export;

@@ -93,10 +93,13 @@
 //! Memory is proportional to the number of pieces (occupied voxels times
 //! triangles per voxel), never to the grid volume.
 
+pub use crate::bake::cover::{
+    Cover, COVER_DISTANCE, COVER_GAP, COVER_POINTS, ENCLOSED_POLAR, ENCLOSED_RAYS,
+};
 use crate::bake::error::BakeError;
 use crate::core::bvh::Bvh;
 use crate::core::compute::{round_up, Access, Backend, Gpu};
-use crate::core::math::{cross, dot, sub, tangent_basis};
+use crate::core::math::{cross, dot, sub};
 use crate::core::patch::{clip_to_unit_box, piece_polygon, Direction, Grid, Patch};
 use crate::core::scene::Scene;
 use rayon::prelude::*;
@@ -113,29 +116,6 @@ pub const CONNECT_LIFT: f64 = 1e-3;
 /// direction does not separate them (their own surface, curving across the
 /// chord): a voxel's diagonal.
 pub const CONNECT_OWN: f64 = 1.732_050_807_568_877_2;
-
-/// A piece's point is covered when the back of another surface lies
-/// within this many voxel sizes in front of it, along its normal (module
-/// doc, "Covered geometry").
-pub const COVER_DISTANCE: f64 = 0.5;
-
-/// Rays of the enclosure test (module doc, "Covered geometry"): along the
-/// normal and a fan of `ENCLOSED_RAYS − 1` directions at
-/// [`ENCLOSED_POLAR`] from it. A point whose every ray meets a back face
-/// first is inside a closed solid; one ray that escapes or meets a front
-/// face proves it is not, so open surfaces cost one or two rays a point.
-pub const ENCLOSED_RAYS: usize = 8;
-
-/// Polar angle of the enclosure test's fan, radians (60°: between the
-/// normal and the horizon, so a box's walls and its top are both probed).
-pub const ENCLOSED_POLAR: f64 = std::f64::consts::FRAC_PI_3;
-
-/// Points tested per piece for covered geometry (module doc).
-pub const COVER_POINTS: usize = 16;
-
-/// A piece's point is covered when any other surface, front or back, lies
-/// within this many voxel sizes in front of it (module doc).
-pub const COVER_GAP: f64 = 0.05;
 
 /// Nearest pieces (or pairs of pieces) tested for connectivity.
 pub const NEAREST: usize = 4;
@@ -303,100 +283,6 @@ pub struct OwnedPiece {
     /// The share of the piece's area that is not covered (module doc,
     /// "Covered geometry"): 0 for a dropped piece, 1 for most.
     pub visible: f32,
-}
-
-/// The covered-point rule (module doc, "Covered geometry"), shared by the
-/// voxelizer (which pieces and how much of them a patch stands for) and the
-/// rays form factors (which ray origins stand for a partly covered piece).
-pub struct Cover<'a> {
-    bvh: &'a Bvh,
-    normals: &'a [[f64; 3]],
-    shift: [f64; 3],
-    lift: f64,
-    cover: f64,
-    gap: f64,
-    reach: f64,
-}
-
-impl<'a> Cover<'a> {
-    /// The rule at `grid`'s voxel size over `bvh` (built with the shift
-    /// `grid.centre()`), `normals` the scene's unit triangle normals.
-    pub fn new(scene: &Scene, grid: &Grid, bvh: &'a Bvh, normals: &'a [[f64; 3]]) -> Cover<'a> {
-        let (lo, hi) = scene.bounds();
-        let diagonal = (0..3)
-            .map(|q| (hi[q] - lo[q]) as f64)
-            .map(|e| e * e)
-            .sum::<f64>()
-            .sqrt();
-        Cover {
-            bvh,
-            normals,
-            shift: grid.centre(),
-            lift: CONNECT_LIFT * grid.size,
-            cover: COVER_DISTANCE * grid.size,
-            gap: COVER_GAP * grid.size,
-            reach: 2.0 * diagonal + grid.size,
-        }
-    }
-
-    /// Whether the point `x` (world) of triangle `tri`, unit normal `n`, is
-    /// covered: the back of a surface within [`COVER_DISTANCE`] voxels in
-    /// front, any surface within [`COVER_GAP`], or enclosed.
-    pub fn covered(&self, x: [f64; 3], n: [f64; 3], tri: u32) -> bool {
-        let (bvh, normals) = (self.bvh, self.normals);
-        let o: [f64; 3] = std::array::from_fn(|q| x[q] + self.lift * n[q] - self.shift[q]);
-        // Ignored: the piece's own triangle, and front faces (surfaces
-        // facing this point) beyond the gap.
-        let (cover, gap) = (self.cover, self.gap);
-        let near = bvh
-            .any_hit(o, n.map(|v| v * cover), |k, t| {
-                let hit = bvh.order[k as usize];
-                hit == tri
-                    || (dot(normals[hit as usize], n) < 0.0 && t * cover > gap)
-                    || (dot(normals[hit as usize], n) > 0.0 && self.front_at(o, n, t * cover, tri))
-            })
-            .is_some();
-        near || self.enclosed(o, n, tri)
-    }
-
-    /// Whether a surface facing back along the unit direction `d` from `o`
-    /// (shifted) crosses it within `lift` of the distance `t`: the other
-    /// side of a two-sided surface modelled as two coincident triangles,
-    /// which makes the back face found there no back at all.
-    fn front_at(&self, o: [f64; 3], d: [f64; 3], t: f64, tri: u32) -> bool {
-        let (bvh, normals) = (self.bvh, self.normals);
-        let e = self.lift;
-        let start: [f64; 3] = std::array::from_fn(|q| o[q] + (t - e) * d[q]);
-        bvh.any_hit(start, d.map(|v| v * 2.0 * e), |k, _| {
-            let hit = bvh.order[k as usize];
-            hit == tri || dot(normals[hit as usize], d) >= 0.0
-        })
-        .is_some()
-    }
-
-    /// Every direction of a fixed fan around the normal meets the back of a
-    /// surface first: the point (`o`, shifted) is inside a closed solid (the
-    /// floor under a box without a bottom face), at any distance.
-    fn enclosed(&self, o: [f64; 3], n: [f64; 3], tri: u32) -> bool {
-        let (t, b) = tangent_basis(n);
-        let (st, ct) = ENCLOSED_POLAR.sin_cos();
-        (0..ENCLOSED_RAYS).all(|k| {
-            let d: [f64; 3] = if k == 0 {
-                n
-            } else {
-                let phi = std::f64::consts::TAU * (k - 1) as f64 / (ENCLOSED_RAYS - 1) as f64;
-                std::array::from_fn(|q| st * (phi.cos() * t[q] + phi.sin() * b[q]) + ct * n[q])
-            };
-            self.bvh
-                .closest_hit(o, d.map(|v| v * self.reach))
-                .is_some_and(|(leaf, t)| {
-                    let hit = self.bvh.order[leaf as usize];
-                    hit != tri
-                        && dot(self.normals[hit as usize], d) > 0.0
-                        && !self.front_at(o, d, t * self.reach, tri)
-                })
-        })
-    }
 }
 
 /// Voxelizes `scene` at the given resolution on `backend`.
