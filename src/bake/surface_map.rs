@@ -131,9 +131,7 @@ pub fn build(
         &scene.triangles,
         super::form_factor::shift_of(&grid),
     );
-    let normals: Vec<[f64; 3]> = (0..scene.triangles.len())
-        .map(|t| scene.triangle_normal(t))
-        .collect();
+    let normals: Vec<[f64; 3]> = scene.triangle_normals();
     let cover = Cover::new(scene, &grid, &bvh, &normals);
 
     // Sample points.

@@ -628,9 +628,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         ..Default::default()
     };
     // Per-triangle facing direction and unit normal (f64, from the winding).
-    let normals: Vec<[f64; 3]> = (0..scene.triangles.len())
-        .map(|t| scene.triangle_normal(t))
-        .collect();
+    let normals: Vec<[f64; 3]> = scene.triangle_normals();
     let mut kept: Vec<(u64, Direction, u32, usize)> = Vec::with_capacity(pieces.len());
     for (i, p) in pieces.iter().enumerate() {
         if !p.area.is_finite() || !p.centroid.iter().all(|c| c.is_finite()) {
@@ -745,7 +743,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         }
     }
     let kept = visible;
-    let piece_acc = |i: usize, tri: u32, share: f64| -> (Acc, [f64; 3]) {
+    let piece_acc = |i: usize, tri: u32, share: f64| -> Acc {
         let p = &pieces[i];
         let material = &scene.materials[scene.triangle_material[tri as usize] as usize];
         let n = normals[tri as usize];
@@ -765,7 +763,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
                 acc.emission_normal[c][q] = a * n[q] * material.emission[c] as f64;
             }
         }
-        (acc, world)
+        acc
     };
 
     // Components: the pieces of one voxel facing one way, split where a
@@ -797,7 +795,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         let run: Vec<(Acc, [f64; 3], [f64; 3])> = (a..b)
             .map(|idx| {
                 let (_, _, tri, i) = kept[idx];
-                let (acc, _) = piece_acc(i, tri, visible_share[idx]);
+                let acc = piece_acc(i, tri, visible_share[idx]);
                 (acc, visible_point[idx], normals[tri as usize])
             })
             .collect();

@@ -120,9 +120,7 @@ pub fn form_factors(
     let lookup = PieceLookup::new(vox, scene.triangles.len());
     let shift = super::shift_of(&vox.grid);
     let bvh = Bvh::build(&scene.positions, &scene.triangles, shift);
-    let normals: Vec<[f64; 3]> = (0..scene.triangles.len())
-        .map(|t| scene.triangle_normal(t))
-        .collect();
+    let normals: Vec<[f64; 3]> = scene.triangle_normals();
     let cover = Cover::new(scene, &vox.grid, &bvh, &normals);
     let (lo, hi) = scene.bounds();
     let extent = (0..3)

@@ -212,6 +212,14 @@ impl Scene {
         0.5 * norm(cross(sub(b, a), sub(c, a)))
     }
 
+    /// Every triangle's unit normal ([`Scene::triangle_normal`]), in triangle
+    /// order.
+    pub fn triangle_normals(&self) -> Vec<[f64; 3]> {
+        (0..self.triangles.len())
+            .map(|t| self.triangle_normal(t))
+            .collect()
+    }
+
     /// Unit geometric normal of triangle `t` from its counter-clockwise
     /// winding, in `f64`; the zero vector for a zero-area triangle (which a
     /// loaded scene does not contain).
