@@ -132,6 +132,51 @@ fn thin_walls_at_any_position_let_no_light_into_the_dark_room() {
     }
 }
 
+/// Writes `quads` with emission 1 on every material (Ke appended to the
+/// MTL) and bakes them at `voxel`.
+fn bake_emitting(tag: &str, quads: &[Quad], voxel: f64) -> bake::BakeOutput {
+    let obj = write_quads(tag, quads);
+    let mtl = obj.with_file_name("scene.mtl");
+    let text = std::fs::read_to_string(&mtl)
+        .unwrap()
+        .replace("Kd", "Ke 1 1 1\nKd");
+    std::fs::write(&mtl, text).unwrap();
+    let c = config(&obj, Resolution::VoxelSize(voxel));
+    common::gpu();
+    bake::run(&c, &mut |_| {}).expect("bake")
+}
+
+/// The furnace measures of a bake with uniform albedo `rho` and emission 1
+/// everywhere: the largest `|row sum − 1|` of `F` and the largest relative
+/// error of `H = T_∞ E` (uncompressed, f32) against the exact `1 / (1 − ρ)`,
+/// with the patches whose rows are off by more than `row_tol`, for the
+/// failure message.
+fn furnace_errors(out: &bake::BakeOutput, rho: f64, row_tol: f64) -> (f64, f64, String) {
+    let ff = &out.form_factors;
+    let rows = ff.row_sums();
+    let worst_row = rows.iter().map(|s| (s - 1.0).abs()).fold(0.0, f64::max);
+    let mut off = String::new();
+    for (k, r) in rows.iter().enumerate() {
+        if (r - 1.0).abs() > row_tol {
+            let p = &out.patches[k];
+            off += &format!(
+                "\n  row {k}: {r} centre {:?} normal {:?} area {}",
+                p.centre, p.normal, p.area
+            );
+        }
+    }
+    let n = ff.n;
+    let t = out.transfer.channel(0);
+    let exact = 1.0 / (1.0 - rho);
+    let worst_h = (0..n)
+        .map(|i| {
+            let h: f64 = t[i * n..(i + 1) * n].iter().map(|&v| v as f64).sum();
+            (h / exact - 1.0).abs()
+        })
+        .fold(0.0, f64::max);
+    (worst_row, worst_h, off)
+}
+
 #[test]
 fn furnace_in_boxes_whose_sides_divide_no_voxel_size() {
     // Closed boxes, every face one quad (two triangles), uniform albedo ρ
@@ -143,39 +188,17 @@ fn furnace_in_boxes_whose_sides_divide_no_voxel_size() {
         ([1.004, 1.0, 0.5], 0.25), // a 0.004 sliver column along one side
     ] {
         for &rho in &[0.9, 0.99] {
-            let dir = common::temp_dir("acc-furnace");
             let mut quads = room([0.0; 3], size, [rho; 3]);
             for q in &mut quads {
                 q.albedo = [rho; 3];
             }
-            let obj = write_quads("acc-furnace", &quads);
-            // Emission on every material: append Ke to the MTL.
-            let mtl = obj.with_file_name("scene.mtl");
-            let text = std::fs::read_to_string(&mtl)
-                .unwrap()
-                .replace("Kd", "Ke 1 1 1\nKd");
-            std::fs::write(&mtl, text).unwrap();
-            let _ = dir;
-            let c = config(&obj, Resolution::VoxelSize(voxel));
-            common::gpu();
-            let out = bake::run(&c, &mut |_| {}).expect("bake");
-            let ff = &out.form_factors;
-            let rows = ff.row_sums();
-            let worst_row = rows.iter().map(|s| (s - 1.0).abs()).fold(0.0, f64::max);
+            let out = bake_emitting("acc-furnace", &quads, voxel);
+            let (worst_row, worst, off) = furnace_errors(&out, rho, 0.005);
             assert!(
                 worst_row < 0.005,
-                "box {size:?} at voxel {voxel}: a row sums {worst_row} away from 1"
+                "box {size:?} at voxel {voxel}: a row sums {worst_row} away from 1{off}"
             );
-            // H = T_∞ E with the uncompressed transfer (f32).
-            let n = ff.n;
-            let t = out.transfer.channel(0);
-            let exact = 1.0 / (1.0 - rho);
             let tol = if rho < 0.95 { 0.01 } else { 0.05 };
-            let mut worst = 0.0f64;
-            for i in 0..n {
-                let h: f64 = t[i * n..(i + 1) * n].iter().map(|&v| v as f64).sum();
-                worst = worst.max((h / exact - 1.0).abs());
-            }
             assert!(
                 worst < tol,
                 "box {size:?} at voxel {voxel}, ρ {rho}: furnace H off by {worst:.4} (> {tol})"
@@ -216,15 +239,7 @@ fn furnace_with_a_bottomless_box_on_the_floor() {
         [0.87, 0.37, 1.09],
         [rho; 3],
     ));
-    let obj = write_quads("acc-furnace-box", &quads);
-    let mtl = obj.with_file_name("scene.mtl");
-    let text = std::fs::read_to_string(&mtl)
-        .unwrap()
-        .replace("Kd", "Ke 1 1 1\nKd");
-    std::fs::write(&mtl, text).unwrap();
-    let c = config(&obj, Resolution::VoxelSize(0.2));
-    common::gpu();
-    let out = bake::run(&c, &mut |_| {}).expect("bake");
+    let out = bake_emitting("acc-furnace-box", &quads, 0.2);
     let v = &out.report.voxels;
     let footprint = 0.46 * 0.56;
     let up = v.covered_area_per_direction[2];
@@ -232,30 +247,8 @@ fn furnace_with_a_bottomless_box_on_the_floor() {
         (up / footprint - 1.0).abs() < 0.05,
         "covered floor {up}, the box stands on {footprint}"
     );
-    let ff = &out.form_factors;
-    let worst_row = ff
-        .row_sums()
-        .iter()
-        .map(|s| (s - 1.0).abs())
-        .fold(0.0, f64::max);
-    for (k, s) in ff.row_sums().iter().enumerate() {
-        if (s - 1.0).abs() > 0.005 {
-            let p = &out.patches[k];
-            eprintln!(
-                "row {k}: {s} centre {:?} normal {:?} area {}",
-                p.centre, p.normal, p.area
-            );
-        }
-    }
-    assert!(worst_row < 0.005, "a row sums {worst_row} away from 1");
-    let n = ff.n;
-    let t = out.transfer.channel(0);
-    let exact = 1.0 / (1.0 - rho);
-    let mut worst = 0.0f64;
-    for i in 0..n {
-        let h: f64 = t[i * n..(i + 1) * n].iter().map(|&v| v as f64).sum();
-        worst = worst.max((h / exact - 1.0).abs());
-    }
+    let (worst_row, worst, off) = furnace_errors(&out, rho, 0.005);
+    assert!(worst_row < 0.005, "a row sums {worst_row} away from 1{off}");
     assert!(worst < 0.01, "furnace H off by {worst:.4}");
 }
 
