@@ -1,11 +1,18 @@
 // Tiled single-precision matrix product for the transfer stage:
 //
-//     C = D + A * B        (use_d != 0)
-//     C =     A * B        (use_d == 0)
+//     C = D + alpha * A * B        (use_d == 1)
+//     C = C + alpha * A * B        (use_d == 2: an update in place)
+//     C =     alpha * A * B        (use_d == 0)
 //
-// for square row-major N x N matrices whose size N is a multiple of the
-// tile size TS (the host pads with zeros, src/gemm.rs). The CPU reference is
-// faer's matrix product in f64 (`gemm::reference_product` in src/gemm.rs).
+// for row-major matrices whose sizes are multiples of the tile size TS (the
+// host pads with zeros, src/bake/gemm.rs). The whole-matrix products of the
+// series (square N x N, alpha = 1) use a_off = b_off = c_off = 0 and
+// lda = ldb = ldc = n, kt = n / TS; the blocked LU solve
+// (src/bake/solve.rs) passes sub-matrices of larger ones: A starts at
+// element a_off with row pitch lda (rows of C x kt * TS), B at b_off with
+// pitch ldb (kt * TS x columns of C), C (and D) at c_off with pitch ldc;
+// the grid is one work-group per tile of C. The CPU reference is faer's
+// matrix product in f64 (`gemm::reference_product` in src/bake/gemm.rs).
 //
 // Work decomposition (the classic register-blocked SGEMM, after Goto & van
 // de Geijn, "Anatomy of High-Performance Matrix Multiplication", ACM TOMS
@@ -33,18 +40,21 @@
 // For the non-negative matrices of the transfer stage this bounds the
 // relative error of every entry by about (TS + N / TS) * 2^-24.
 //
-// Zero tiles: flags_a[bi * NT + kb] (and flags_b[kb * NT + bj]) is 0 when the
-// TS x TS tile (bi, kb) of A (tile (kb, bj) of B) is all zeros; such K blocks
-// contribute exactly zero and are skipped: neither loaded nor multiplied.
+// Zero tiles (whole-matrix products only: use_flags requires zero offsets
+// and pitches n): flags_a[bi * NT + kb] (and flags_b[kb * NT + bj]) is 0
+// when the TS x TS tile (bi, kb) of A (tile (kb, bj) of B) is all zeros;
+// such K blocks contribute exactly zero and are skipped: neither loaded nor
+// multiplied.
 // The barriers stay unconditional (OpenCL 1.2, section 3.4.3: a barrier must
 // be reached by all work-items of a group or by none; PoCL also rejects
 // barriers under a uniform branch).
 //
-// Epilogue: besides C, every work-group writes
-// - flags_c[bi * NT + bj]: whether its tile of C has a non-zero entry (the
-//   operand flags of the next product, at no extra pass over C);
+// Epilogue: besides C, every work-group g = bi * (groups along x) + bj
+// writes
+// - flags_c[g]: whether its tile of C has a non-zero entry (the operand
+//   flags of the next product, at no extra pass over C);
 // - stats[2 * g]: the largest ratio t / c over its tile, where t is the
-//   entry of A * B and c the entry of C (0 where c == 0), or +INF when any
+//   entry of alpha * A * B and c the entry of C (0 where c == 0), or +INF when any
 //   entry of C is not finite. With use_d this is the size of the term just
 //   added relative to the sum: the host's convergence test and its
 //   non-finite detector;
@@ -105,7 +115,15 @@ void gemm(__global const float *restrict a,
           __global float *restrict stats,
           const uint n,
           const uint use_d,
-          const uint use_flags)
+          const uint use_flags,
+          const ulong a_off,
+          const ulong b_off,
+          const ulong c_off,
+          const uint lda,
+          const uint ldb,
+          const uint ldc,
+          const uint kt,
+          const float alpha)
 {
     __local float as[TS * TS];
     __local float bs[TS * TS];
@@ -128,7 +146,7 @@ void gemm(__global const float *restrict a,
                 for (uint v = 0; v < NV; v++) tot[i][j][r][v] = (floatV)(0.0f);
 
     uint blocks = 0;
-    for (uint kb = 0; kb < nt; kb++) {
+    for (uint kb = 0; kb < kt; kb++) {
         // Uniform across the work-group. The barriers stay outside the
         // conditionals: PoCL's work-group compiler rejects barriers under
         // a branch, even a uniform one.
@@ -139,7 +157,7 @@ void gemm(__global const float *restrict a,
         // Copy the blocks in vectors of CW floats.
         if (!skip) for (uint e = lid; e < TS * TS / CW; e += WG) {
             const uint row = e / (TS / CW), col = (e % (TS / CW)) * CW;
-            const floatC va = vloadC(0, a + (size_t)(bi * TS + row) * n + kb * TS + col);
+            const floatC va = vloadC(0, a + a_off + (size_t)(bi * TS + row) * lda + kb * TS + col);
 #if LAYOUT == 1
             float vs[CW];
             vstoreC(va, 0, vs);
@@ -147,7 +165,7 @@ void gemm(__global const float *restrict a,
 #else
             vstoreC(va, 0, as + A_AT(row, col));
 #endif
-            vstoreC(vloadC(0, b + (size_t)(kb * TS + row) * n + bj * TS + col), 0,
+            vstoreC(vloadC(0, b + b_off + (size_t)(kb * TS + row) * ldb + bj * TS + col), 0,
                     bs + B_AT(row, col));
         }
         barrier(CLK_LOCAL_MEM_FENCE);
@@ -191,9 +209,10 @@ void gemm(__global const float *restrict a,
             const uint col0 = (j * LX + lx) * NR;
             for (uint r = 0; r < MR; r++) {
                 for (uint v = 0; v < NV; v++) {
-                    const size_t o = (size_t)(bi * TS + row0 + r) * n + bj * TS + col0 + v * VW;
-                    const floatV t = tot[i][j][r][v];
-                    const floatV s = use_d ? vloadV(0, d + o) + t : t;
+                    const size_t o = c_off + (size_t)(bi * TS + row0 + r) * ldc + bj * TS + col0 + v * VW;
+                    const floatV t = alpha * tot[i][j][r][v];
+                    const floatV s = use_d == 2 ? vloadV(0, c + o) + t
+                                   : use_d == 1 ? vloadV(0, d + o) + t : t;
                     vstoreV(s, 0, c + o);
                     const intV zero = (s == (floatV)(0.0f));
                     bad |= any(~(isfinite(s) & isfinite(t)));
@@ -218,7 +237,7 @@ void gemm(__global const float *restrict a,
             ratio = fmax(ratio, red_ratio[l]);
             nonzero |= red_nonzero[l];
         }
-        const uint g = bi * nt + bj;
+        const uint g = bi * get_num_groups(0) + bj;
         // A non-finite entry counts as non-zero, so that nothing downstream
         // skips it silently.
         flags_c[g] = (uchar)(nonzero || isinf(ratio));

@@ -54,7 +54,8 @@
 //!    triangles, [`core::bvh`]).
 //! 4. [`bake::transfer`]: the multi-bounce transfer `T_k = Σ_{h=1..k} F
 //!    (diag(ρ) F)^{h−1}` or `T_∞ = F (I − diag(ρ) F)^{−1}` per colour
-//!    channel, from a tiled OpenCL GEMM ([`bake::gemm`], `kernels/gemm.cl`).
+//!    channel, from a tiled OpenCL GEMM ([`bake::gemm`], `kernels/gemm.cl`);
+//!    `T_∞` by a blocked LU solve built on the same GEMM ([`bake::solve`]).
 //! 5. [`bake::reorder`]: one symmetric permutation of rows and columns that
 //!    makes neighbouring rows alike (the thesis's greedy chain, or a Hilbert
 //!    curve).

@@ -499,6 +499,14 @@ impl<'g> Gemm<'g> {
                 .set_arg(&n_u32)
                 .set_arg(&use_d)
                 .set_arg(&use_flags)
+                .set_arg(&0u64)
+                .set_arg(&0u64)
+                .set_arg(&0u64)
+                .set_arg(&n_u32)
+                .set_arg(&n_u32)
+                .set_arg(&n_u32)
+                .set_arg(&(tiles as u32))
+                .set_arg(&1.0f32)
                 .set_global_work_sizes(&[tiles * lx, tiles * ly])
                 .set_local_work_sizes(&[lx, ly])
                 .enqueue_nd_range(self.gpu.queue())
@@ -526,6 +534,150 @@ impl<'g> Gemm<'g> {
         run.skipped = run.tile_products - executed;
         run.flops = 2.0 * (self.config.tile as f64).powi(3) * executed as f64;
         Ok(run)
+    }
+}
+
+/// A sub-matrix operand of [`Gemm::product_at`]: a device buffer, the
+/// element where the sub-matrix starts and its row pitch in elements. Its
+/// size is given by the product (multiples of the tile).
+#[derive(Clone, Copy)]
+pub struct At<'b> {
+    pub data: &'b Buffer<f32>,
+    pub offset: usize,
+    pub pitch: usize,
+}
+
+impl DeviceMatrix {
+    /// The sub-matrix starting at (`row`, `col`) of the padded matrix.
+    pub fn at(&self, row: usize, col: usize) -> At<'_> {
+        At {
+            data: &self.data,
+            offset: row * self.padded + col,
+            pitch: self.padded,
+        }
+    }
+
+    /// The padded data.
+    pub fn data(&self) -> &Buffer<f32> {
+        &self.data
+    }
+}
+
+impl Gemm<'_> {
+    /// `C = αAB` or, with `accumulate`, `C += αAB` on sub-matrices:
+    /// `C` is `rows × cols` tiles, `A` `rows × k` tiles, `B` `k × cols`
+    /// tiles (tiles of `config.tile`). No zero-tile skipping. The operands
+    /// may lie in one buffer; `C` may even be `A` or `B` itself when
+    /// `k = 1`: each work-group copies its whole A and B blocks into local
+    /// memory before the barrier that precedes its writes, and reads no
+    /// tile another work-group writes (the blocked LU solve relies on
+    /// this, [`crate::bake::solve`]). Otherwise `C` must not overlap `A`
+    /// or `B`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn product_at(
+        &self,
+        a: At,
+        b: At,
+        c: At,
+        rows: usize,
+        cols: usize,
+        k: usize,
+        alpha: f32,
+        accumulate: bool,
+    ) -> Result<GemmRun, BakeError> {
+        let ts = self.config.tile;
+        assert!(
+            rows > 0 && cols > 0 && k > 0,
+            "empty sub-matrix product {rows} x {cols} x {k} tiles"
+        );
+        let groups = rows * cols;
+        let stats =
+            self.gpu
+                .buffer::<f32>("GEMM tile statistics", 2 * groups, Access::WriteOnly)?;
+        let flags_c = self
+            .gpu
+            .buffer::<u8>("GEMM output flags", groups, Access::WriteOnly)?;
+        let use_d = if accumulate { 2u32 } else { 0 };
+        let [lx, ly] = self.config.local;
+        let (pa, pb, pc) = (a.pitch as u32, b.pitch as u32, c.pitch as u32);
+        let seconds = self.gpu.timed("gemm (sub-matrices)", || unsafe {
+            ExecuteKernel::new(&self.gemm)
+                .set_arg(a.data)
+                .set_arg(b.data)
+                .set_arg(c.data)
+                .set_arg(c.data)
+                .set_arg(&flags_c)
+                .set_arg(&flags_c)
+                .set_arg(&flags_c)
+                .set_arg(&stats)
+                .set_arg(&pc)
+                .set_arg(&use_d)
+                .set_arg(&0u32)
+                .set_arg(&(a.offset as u64))
+                .set_arg(&(b.offset as u64))
+                .set_arg(&(c.offset as u64))
+                .set_arg(&pa)
+                .set_arg(&pb)
+                .set_arg(&pc)
+                .set_arg(&(k as u32))
+                .set_arg(&alpha)
+                .set_global_work_sizes(&[cols * lx, rows * ly])
+                .set_local_work_sizes(&[lx, ly])
+                .enqueue_nd_range(self.gpu.queue())
+        })?;
+        let stats = self
+            .gpu
+            .download("GEMM tile statistics", &stats, 2 * groups)?;
+        let nonfinite = stats.chunks_exact(2).any(|s| !(s[0] <= f32::MAX));
+        Ok(GemmRun {
+            seconds,
+            tile_products: (groups * k) as u64,
+            skipped: 0,
+            max_term_ratio: if nonfinite { f64::INFINITY } else { 0.0 },
+            flops: 2.0 * (ts as f64).powi(3) * (groups * k) as f64,
+        })
+    }
+
+    /// Reads the `rows × cols` block at (`row`, `col`) of a device matrix
+    /// (row-major, `cols` per row).
+    pub fn read_block(
+        &self,
+        m: &DeviceMatrix,
+        row: usize,
+        col: usize,
+        rows: usize,
+        cols: usize,
+    ) -> Result<Vec<f32>, BakeError> {
+        assert!(row + rows <= m.padded && col + cols <= m.padded);
+        let mut out = vec![0.0f32; rows * cols];
+        let f = std::mem::size_of::<f32>();
+        let origin = [col * f, row, 0];
+        let host = [0usize, 0, 0];
+        let region = [cols * f, rows, 1];
+        // SAFETY: a blocking read of `rows × cols` floats, inside the
+        // buffer (asserted) and inside `out`.
+        unsafe {
+            self.gpu
+                .queue()
+                .enqueue_read_buffer_rect(
+                    &m.data,
+                    opencl3::types::CL_BLOCKING,
+                    origin.as_ptr(),
+                    host.as_ptr(),
+                    region.as_ptr(),
+                    m.padded * f,
+                    0,
+                    cols * f,
+                    0,
+                    out.as_mut_ptr().cast(),
+                    &[],
+                )
+                .map_err(|e| crate::core::error::ClError::Api {
+                    what: "reading a block of a matrix".into(),
+                    code: e.to_string(),
+                })?;
+        }
+        Ok(out)
     }
 }
 

@@ -23,6 +23,7 @@ pub mod pieces;
 pub mod preview;
 pub mod reorder;
 pub mod report;
+pub mod solve;
 pub mod surface_map;
 pub mod transfer;
 pub mod voxelize;

@@ -114,10 +114,37 @@ impl std::fmt::Display for Bounces {
     }
 }
 
+/// How `T_∞` is computed on OpenCL.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub enum InfiniteMethod {
+    /// A blocked LU solve of `X (I − diag(ρ) F) = F` ([`crate::bake::solve`]):
+    /// `8/3 N³` flops per channel, whatever the albedo.
+    #[default]
+    Solve,
+    /// Doubling the series until it converges: `2 N³` per product, `2d − 1`
+    /// products for `d` doublings (9 at spectral radius 0.9, 16 at 0.999).
+    Doubling,
+}
+
+impl InfiniteMethod {
+    /// `solve` or `doubling`.
+    pub fn parse(s: &str) -> Option<InfiniteMethod> {
+        match s {
+            "solve" | "lu" => Some(InfiniteMethod::Solve),
+            "doubling" => Some(InfiniteMethod::Doubling),
+            _ => None,
+        }
+    }
+}
+
 /// Options of the transfer stage.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct TransferOptions {
     pub bounces: Bounces,
+    /// How `T_∞` is computed (OpenCL; the CPU reference always solves).
+    /// A spectral bound `max_i ρ_i Σ_j F_ij ≥ 1` (form factors whose rows sum
+    /// above 1) falls back to doubling, which detects divergence.
+    pub infinite: InfiniteMethod,
     /// Skip all-zero tiles in the products (on by default; off only to
     /// measure what skipping saves: the result is the same bit for bit).
     pub skip_zero_tiles: bool,
@@ -130,6 +157,7 @@ impl Default for TransferOptions {
     fn default() -> Self {
         TransferOptions {
             bounces: Bounces::default(),
+            infinite: InfiniteMethod::default(),
             skip_zero_tiles: true,
             gemm: None,
         }
@@ -141,6 +169,8 @@ impl Default for TransferOptions {
 pub struct ChannelStats {
     /// 0, 1, 2 = R, G, B.
     pub channel: usize,
+    /// "LU solve", "doubling", "Horner" or "f64 reference".
+    pub method: String,
     /// The earlier channel with the same albedos whose matrix this one
     /// shares (nothing was computed for it).
     pub shared_with: Option<usize>,
@@ -217,6 +247,11 @@ impl std::fmt::Display for TransferStats {
             let name = ["R", "G", "B"].get(c.channel).unwrap_or(&"?");
             match c.shared_with {
                 Some(s) => writeln!(f, "  {name}: same albedos as {}, shared", ["R", "G", "B"][s])?,
+                None if c.method == "LU solve" => writeln!(
+                    f,
+                    "  {name}: spectral bound {:.6}, {} zero-albedo patches, LU solve: {} GEMM launches",
+                    c.spectral_bound, c.zero_albedo_patches, c.gemms
+                )?,
                 None => writeln!(
                     f,
                     "  {name}: spectral bound {:.6}, {} zero-albedo patches, {} doublings + {} Horner steps = {} bounces, last term / sum {:.2e}, {} GEMMs, {:.1} % tiles skipped",
@@ -434,16 +469,21 @@ pub fn transfer(
         spectral_bound: unique.iter().map(|&c| bounds[c]).fold(0.0, f64::max),
         ..TransferStats::default()
     };
-    let per_channel_gemms = |c: usize| -> u64 {
+    let solves = |c: usize| {
+        options.bounces == Bounces::Infinite
+            && options.infinite == InfiniteMethod::Solve
+            && bounds[c] < 1.0
+    };
+    let mut tile = 0;
+    let per_channel_gemms = |c: usize, tile: usize| -> u64 {
         match options.bounces {
             Bounces::K(k) => planned_gemms(k) as u64,
+            Bounces::Infinite if solves(c) && tile > 0 => {
+                crate::bake::solve::launches(n.div_ceil(tile))
+            }
             Bounces::Infinite => 2 * expected_doublings(bounds[c]) as u64 - 1,
         }
     };
-    let mut total: u64 = unique.iter().map(|&c| per_channel_gemms(c)).sum();
-    let mut done = 0u64;
-    progress(0, total);
-
     let gemm = match backend {
         Backend::OpenCl(gpu) => {
             let g = match options.gemm {
@@ -453,6 +493,7 @@ pub fn transfer(
             stats.backend = format!("OpenCL: {} ({})", gpu.info().name, gpu.info().platform);
             stats.gemm_config = g.config().to_string();
             stats.padded = if n == 0 { 0 } else { g.padded(n) };
+            tile = g.config().tile;
             Some(g)
         }
         Backend::Cpu => {
@@ -461,6 +502,10 @@ pub fn transfer(
             None
         }
     };
+
+    let mut total: u64 = unique.iter().map(|&c| per_channel_gemms(c, tile)).sum();
+    let mut done = 0u64;
+    progress(0, total);
 
     let mut computed: Vec<Option<Vec<f32>>> = vec![None, None, None];
     for &c in &unique {
@@ -475,7 +520,19 @@ pub fn transfer(
             Vec::new()
         } else {
             match &gemm {
+                Some(g) if solves(c) => {
+                    cs.method = "LU solve".into();
+                    let mut tick = || {
+                        done += 1;
+                        progress(done, total.max(done));
+                    };
+                    crate::bake::solve::lu_channel(g, f, n, &rho, &mut cs, &mut tick)?
+                }
                 Some(g) => {
+                    cs.method = match options.bounces {
+                        Bounces::Infinite => "doubling".into(),
+                        Bounces::K(_) => "doubling and Horner".into(),
+                    };
                     let mut tick = |extra: bool| {
                         done += 1;
                         if extra && done > total {
@@ -486,6 +543,7 @@ pub fn transfer(
                     cl_channel(g, f, n, &rho, options, &mut cs, &mut tick)?
                 }
                 None => {
+                    cs.method = "f64 reference".into();
                     let rho64: Vec<f64> = rho.iter().map(|&r| r as f64).collect();
                     let t = reference(f, n, &rho64, options.bounces)?;
                     match options.bounces {
@@ -496,7 +554,7 @@ pub fn transfer(
                         // An exact solve: no series, no terms.
                         Bounces::Infinite => cs.terms = 0,
                     }
-                    done += per_channel_gemms(c);
+                    done += per_channel_gemms(c, tile);
                     progress(done, total);
                     let t32: Vec<f32> = t.iter().map(|&x| x as f32).collect();
                     if let Some(e) = t32.iter().position(|x| !x.is_finite()) {
