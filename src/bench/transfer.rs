@@ -3,7 +3,7 @@
 
 use crate::bake::error::BakeError;
 use crate::bake::gemm::{reference_product, relative_frobenius, to_faer, Gemm};
-use crate::bake::transfer::{reference, transfer, Bounces, TransferOptions};
+use crate::bake::transfer::{reference, transfer, Bounces, InfiniteMethod, TransferOptions};
 use crate::core::compute::Backend;
 use crate::synthetic;
 use serde::Serialize;
@@ -33,27 +33,27 @@ pub fn bench_stress(
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "| n | rooms | albedo | spectral bound | doublings | bounces summed | GEMMs | tiles skipped | GEMM device s | GFLOP/s | stage wall s | rel. Frobenius vs f64 | max rel. entry error | furnace max error | non-finite | f64 reference s |"
+        "| n | rooms | albedo | T_∞ by | spectral bound | doublings | bounces summed | GEMMs | tiles skipped | GEMM device s | GFLOP/s | stage wall s | rel. Frobenius vs f64 | max rel. entry error | furnace max error | non-finite | f64 reference s |"
     );
     let _ = writeln!(
         out,
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for case in cases {
         let rooms = case.rooms.max(1);
         let m = case.n / rooms;
         let scene = synthetic::rooms(&vec![m; rooms], 0x57e55 + case.n as u64);
         let n = scene.n;
-        for &a in albedos {
+        for (&a, method) in albedos
+            .iter()
+            .flat_map(|a| [(a, InfiniteMethod::Solve), (a, InfiniteMethod::Doubling)])
+        {
             let albedo = vec![[a as f32; 3]; n];
-            let t = transfer(
-                &scene.f,
-                n,
-                &albedo,
-                &TransferOptions::default(),
-                backend,
-                &mut |_, _| {},
-            )?;
+            let options = TransferOptions {
+                infinite: method,
+                ..TransferOptions::default()
+            };
+            let t = transfer(&scene.f, n, &albedo, &options, backend, &mut |_, _| {})?;
             let tm = t.channel(0);
             let nonfinite = tm.iter().filter(|x| !x.is_finite()).count();
             // Furnace: H_i = Σ_j T_ij = 1 / (1 − a) (a as stored in f32).
@@ -99,7 +99,8 @@ pub fn bench_stress(
             let s = &t.stats;
             let _ = writeln!(
                 out,
-                "| {n} | {rooms} | {a} | {:.4} | {} | {} | {} | {:.1} % | {:.2} | {:.1} | {:.2} | {:.1e} | {:.1e} | {:.1e} | {}{} | {:.1} |",
+                "| {n} | {rooms} | {a} | {} | {:.4} | {} | {} | {} | {:.1} % | {:.2} | {:.1} | {:.2} | {:.1e} | {:.1e} | {:.1e} | {}{} | {:.1} |",
+                s.per_channel[0].method,
                 s.spectral_bound,
                 s.doublings,
                 s.terms,
@@ -136,17 +137,19 @@ pub fn bench_stress(
         );
         let _ = writeln!(
             out,
-            "| bounces | GEMMs | GEMM device s | stage wall s | light captured H / H_∞ |"
+            "| bounces (method) | GEMM launches | GEMM device s | stage wall s | light captured H / H_∞ |"
         );
         let _ = writeln!(out, "|---|---|---|---|---|");
-        for bounces in [
-            Bounces::K(1),
-            Bounces::K(3),
-            Bounces::K(8),
-            Bounces::Infinite,
+        for (bounces, infinite) in [
+            (Bounces::K(1), InfiniteMethod::Solve),
+            (Bounces::K(3), InfiniteMethod::Solve),
+            (Bounces::K(8), InfiniteMethod::Solve),
+            (Bounces::Infinite, InfiniteMethod::Doubling),
+            (Bounces::Infinite, InfiniteMethod::Solve),
         ] {
             let options = TransferOptions {
                 bounces,
+                infinite,
                 ..TransferOptions::default()
             };
             let t = transfer(&scene.f, n, &albedo, &options, backend, &mut |_, _| {})?;
@@ -154,7 +157,8 @@ pub fn bench_stress(
             let h: f64 = tm[..n].iter().map(|&x| x as f64).sum();
             let _ = writeln!(
                 out,
-                "| {bounces} | {} | {:.2} | {:.2} | {:.3} |",
+                "| {bounces} ({}) | {} | {:.2} | {:.2} | {:.3} |",
+                t.stats.per_channel[0].method,
                 t.stats.gemms,
                 t.stats.seconds_gemm,
                 t.stats.seconds_total,
