@@ -7,7 +7,7 @@ use clap::{Args, Parser, Subcommand};
 use radiosity::bake::error::BakeError;
 use radiosity::bake::form_factor::{FormFactorMethod, FormFactorOptions};
 use radiosity::bake::reorder::ReorderMethod;
-use radiosity::bake::transfer::{Bounces, TransferOptions};
+use radiosity::bake::transfer::{Bounces, InfiniteMethod, TransferOptions};
 use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
 use radiosity::bakefile::baked::describe;
@@ -315,6 +315,15 @@ struct BakeArgs {
     /// not measure).
     #[arg(long, value_name = "N", default_value_t = bake::DEFAULT_ERROR_LIGHTS)]
     error_lights: usize,
+    /// Patches on both sides of every surface, for scenes whose faces are
+    /// not reliably wound towards the viewer (recorded in the file; `info`
+    /// shows it).
+    #[arg(long)]
+    two_sided: bool,
+    /// T_inf by `solve` (a blocked LU solve, the default) or `doubling`
+    /// (the series, doubled until it converges).
+    #[arg(long, value_name = "METHOD")]
+    infinite_by: Option<String>,
     /// Write inspection files (patches.csv, patches.png, F.npy, T.npy,
     /// T_decoded.npy, albedo.npy) into this directory.
     #[arg(long, value_name = "DIR")]
@@ -356,10 +365,14 @@ impl BakeArgs {
         if let Some(r) = self.ff_rays {
             form_factor.rays = r;
         }
-        let transfer = TransferOptions {
+        let mut transfer = TransferOptions {
             bounces: self.bounces.unwrap_or_default(),
             ..TransferOptions::default()
         };
+        if let Some(m) = &self.infinite_by {
+            transfer.infinite = InfiniteMethod::parse(m)
+                .with_context(|| format!("--infinite-by {m:?}: expected solve or doubling"))?;
+        }
         let codec = match (self.max_error, self.codec, self.top_fraction) {
             (Some(e), _, _) => CodecChoice::MaxError(e),
             (None, None, None) => CodecChoice::default(),
@@ -391,6 +404,7 @@ impl BakeArgs {
             reorder,
             codec,
             error_lights: self.error_lights,
+            two_sided: self.two_sided,
             output: self.output,
             export: self.export,
         };
@@ -593,8 +607,18 @@ fn info(path: &Path, json: bool) -> anyhow::Result<()> {
 /// `radiosity bake`.
 fn bake(args: BakeArgs) -> anyhow::Result<()> {
     let (config, json) = args.into_config()?;
-    let out = bake::run(&config, &mut |line| eprintln!("[bake] {line}"))
-        .with_context(|| format!("baking {}", config.scene.display()))?;
+    let out = bake::run(&config, &mut |line| eprintln!("[bake] {line}")).map_err(|e| {
+        // The library names the remedy "two-sided"; here it is a flag.
+        let facing = e
+            .downcast_ref::<bake::error::BakeError>()
+            .is_some_and(|b| matches!(b, bake::error::BakeError::Facing { .. }));
+        let e = e.context(format!("baking {}", config.scene.display()));
+        if facing {
+            e.context("the faces see nothing (to bake patches on both sides, pass --two-sided)")
+        } else {
+            e
+        }
+    })?;
     if json {
         println!("{}", serde_json::to_string_pretty(&out.report)?);
     } else {

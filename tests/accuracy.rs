@@ -207,6 +207,47 @@ fn furnace_in_boxes_whose_sides_divide_no_voxel_size() {
     }
 }
 
+#[test]
+fn an_outward_wound_box_is_refused_and_bakes_two_sided() {
+    // A closed box whose faces point out (a common export): from their
+    // fronts the walls see nothing, from their backs only the backs of the
+    // other walls. The bake stops naming the cause; two-sided, the inner
+    // sides form a closed box that passes the furnace test, and the outer
+    // sides (half the area) are the patches that see nothing.
+    let rho = 0.9;
+    let mut quads = room([0.0; 3], [1.3, 0.9, 1.7], [rho; 3]);
+    for q in &mut quads {
+        q.corners.reverse();
+    }
+    let obj = write_quads("acc-outward", &quads);
+    let mtl = obj.with_file_name("scene.mtl");
+    let text = std::fs::read_to_string(&mtl)
+        .unwrap()
+        .replace("Kd", "Ke 1 1 1\nKd");
+    std::fs::write(&mtl, text).unwrap();
+    common::gpu();
+    let mut c = config(&obj, Resolution::VoxelSize(0.21));
+    let err = bake::run(&c, &mut |_| {})
+        .err()
+        .expect("an outward-wound box must not bake");
+    let root = err.root_cause().to_string();
+    assert!(
+        root.contains("wound away from each other") && root.contains("two-sided"),
+        "{root}"
+    );
+    c.two_sided = true;
+    let out = bake::run(&c, &mut |_| {}).expect("two-sided bake");
+    let blind = out.report.facing.blind_area_share;
+    // Patch areas are sums of f32 piece areas: 1e-6 relative.
+    assert!((blind - 0.5).abs() < 1e-6, "blind share {blind}");
+    // As the furnace in one-sided boxes (above): rows within 0.5 %, H
+    // within 1 %.
+    let (worst_row, worst, off) = furnace_errors(&out, rho, 0.005);
+    assert!(worst_row < 0.005, "a row sums {worst_row} away from 1{off}");
+    assert!(worst < 0.01, "furnace H off by {worst:.4}");
+    assert!(out.file.options_json.contains("\"two_sided\":true"));
+}
+
 /// The outward faces of the box `[lo, hi]` without its bottom (a box
 /// standing on a floor, as the Cornell box's blocks are modelled).
 fn bottomless_box(lo: [f64; 3], hi: [f64; 3], a: [f64; 3]) -> Vec<Quad> {

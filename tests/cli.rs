@@ -415,3 +415,88 @@ fn info_on_a_non_bake_rad_file_says_so() {
         stderr(&o)
     );
 }
+
+/// A closed unit box whose faces point out (normals away from the inside).
+const OUTWARD_BOX: &str =
+    "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n";
+
+#[test]
+fn refused_bakes_exit_1_and_write_nothing() {
+    let dir = common::temp_dir("cli-refused");
+    let obj = dir.join("box.obj");
+    std::fs::write(&obj, OUTWARD_BOX).unwrap();
+    let out_dir = dir.join("out");
+    let out = out_dir.join("x.rad");
+    let (obj_s, out_s) = (obj.to_str().unwrap(), out.to_str().unwrap());
+    // Beyond the format (32-bit entry indices), and beyond any machine's
+    // memory below ~170 GB: refused before voxelizing, with the numbers.
+    for (patches, says) in [("5000000", "at most 65535"), ("65000", "patches fit")] {
+        let o = radiosity(&["bake", obj_s, "--patches", patches, "-o", out_s]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{}", stderr(&o));
+        assert!(!out_dir.exists(), "nothing is written");
+    }
+    // Wound outward: the cause and the remedy.
+    let o = radiosity(&["bake", obj_s, "--patches", "200", "-o", out_s]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("wound away") && e.contains("--two-sided"), "{e}");
+    assert!(!out.exists());
+    // Two-sided it bakes, and info says so.
+    let o = radiosity(&[
+        "bake",
+        obj_s,
+        "--patches",
+        "200",
+        "--two-sided",
+        "-o",
+        out_s,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = radiosity(&["info", out_s]);
+    assert!(stdout(&o).contains("two-sided"), "{}", stdout(&o));
+}
+
+#[test]
+fn info_finds_the_scene_from_another_directory() {
+    // The stored scene path is relative to the bake file, not to where
+    // info runs.
+    let dir = common::temp_dir("cli-info-elsewhere");
+    let scene_dir = dir.join("scene");
+    std::fs::create_dir_all(&scene_dir).unwrap();
+    let obj = scene_dir.join("box.obj");
+    // The box wound inward (the faces of OUTWARD_BOX reversed).
+    let inward: String = OUTWARD_BOX
+        .lines()
+        .map(|l| match l.strip_prefix("f ") {
+            Some(f) => format!("f {}\n", f.split(' ').rev().collect::<Vec<_>>().join(" ")),
+            None => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(&obj, inward).unwrap();
+    let rad = dir.join("bakes").join("box.rad");
+    let o = radiosity(&[
+        "bake",
+        obj.to_str().unwrap(),
+        "--patches",
+        "150",
+        "-o",
+        rad.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let elsewhere = common::temp_dir("cli-info-cwd");
+    let o = Command::new(env!("CARGO_BIN_EXE_radiosity"))
+        .args(["info", rad.to_str().unwrap()])
+        .current_dir(&elsewhere)
+        .env_remove("RADIOSITY_CL_DEVICE")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    let looked = rad.parent().unwrap().join("../scene/box.obj");
+    assert!(
+        text.contains(&format!("looked for at {}: unchanged", looked.display())),
+        "{text}"
+    );
+}

@@ -64,6 +64,11 @@ pub struct BakeConfig {
     /// Seeded random lights the compression error is measured over (0: not
     /// measured; `--max-error` needs at least 1).
     pub error_lights: usize,
+    /// Patches on both sides of every surface ([`Scene::with_back_sides`]),
+    /// for scenes whose winding is unreliable.
+    ///
+    /// [`Scene::with_back_sides`]: crate::core::scene::Scene::with_back_sides
+    pub two_sided: bool,
     /// The bake file to write, if any.
     #[serde(skip)]
     pub output: Option<PathBuf>,
@@ -86,6 +91,7 @@ impl BakeConfig {
             reorder: None,
             codec: CodecChoice::default(),
             error_lights: DEFAULT_ERROR_LIGHTS,
+            two_sided: false,
             output: None,
             export: None,
         }
@@ -95,14 +101,15 @@ impl BakeConfig {
     /// key; not the device, the output or the exports).
     pub fn cache_key(&self) -> String {
         format!(
-            "v{} {:?} {:?} {:?} {:?} {:?} {}",
+            "v{} {:?} {:?} {:?} {:?} {:?} {}{}",
             crate::bakefile::FORMAT_VERSION,
             self.resolution,
             self.form_factor,
             self.transfer.bounces,
             self.reorder,
             self.codec,
-            self.error_lights
+            self.error_lights,
+            if self.two_sided { " two-sided" } else { "" }
         )
     }
 

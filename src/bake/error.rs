@@ -30,6 +30,10 @@ pub enum BakeError {
     /// needs a valid one.
     #[error("{stage}: {detail}")]
     Numeric { stage: &'static str, detail: String },
+    /// Surfaces that see nothing: faces wound away from each other, or a
+    /// scene with nothing for light to bounce between (`bake::facing`).
+    #[error("facing: {detail}")]
+    Facing { detail: String },
     /// An inspection file that cannot be written.
     #[error("cannot write {path}: {detail}")]
     Export { path: PathBuf, detail: String },

@@ -567,12 +567,11 @@ impl Gemm<'_> {
     /// `C = αAB` or, with `accumulate`, `C += αAB` on sub-matrices:
     /// `C` is `rows × cols` tiles, `A` `rows × k` tiles, `B` `k × cols`
     /// tiles (tiles of `config.tile`). No zero-tile skipping. The operands
-    /// may lie in one buffer; `C` may even be `A` or `B` itself when
-    /// `k = 1`: each work-group copies its whole A and B blocks into local
-    /// memory before the barrier that precedes its writes, and reads no
-    /// tile another work-group writes (the blocked LU solve relies on
-    /// this, [`crate::bake::solve`]). Otherwise `C` must not overlap `A`
-    /// or `B`.
+    /// may lie in one buffer, and `C` may overlap `A` or `B` where no
+    /// work-group reads a tile that another work-group writes: a
+    /// work-group reads its own output tile only in its K loop, before the
+    /// epilogue writes it (the blocked LU solve's in-place panels rely on
+    /// this, [`crate::bake::solve`]).
     #[allow(clippy::too_many_arguments)]
     pub fn product_at(
         &self,

@@ -10,12 +10,14 @@
 //! timings): the same scene and options give the same bytes. Timings go to
 //! the terminal report only.
 
+pub mod budget;
 pub mod cache;
 pub mod config;
 pub mod cover;
 pub mod encode;
 pub mod error;
 pub mod export;
+pub mod facing;
 pub mod form_factor;
 pub mod gemm;
 pub mod mesh_map;
@@ -70,6 +72,21 @@ pub struct BakeOutput {
 /// Runs the bake. `progress` receives one line per stage as it starts.
 pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Result<BakeOutput> {
     config.validate()?;
+    let gpu = match config.compute {
+        ComputeChoice::OpenCl(sel) => Some(Gpu::new(sel).context("opening the OpenCL device")?),
+        ComputeChoice::CpuReference => None,
+    };
+    let backend = backend_of(&gpu);
+    // A requested patch count that cannot fit is refused before anything
+    // is spent or written (the voxelization's real count is checked again).
+    if let Resolution::Patches(p) = config.resolution {
+        budget::check(
+            p,
+            "the requested patch count",
+            budget::host_available(),
+            budget_device(&backend, &config.transfer),
+        )?;
+    }
     // The output's directory is made now, so that a path that cannot be
     // written fails before the bake rather than after it.
     if let Some(dir) = config.output.as_deref().and_then(Path::parent) {
@@ -78,16 +95,13 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
                 .with_context(|| format!("creating the output directory {}", dir.display()))?;
         }
     }
-    let gpu = match config.compute {
-        ComputeChoice::OpenCl(sel) => Some(Gpu::new(sel).context("opening the OpenCL device")?),
-        ComputeChoice::CpuReference => None,
-    };
-    let backend = backend_of(&gpu);
     let device = backend.device_name();
     let TransferStages {
         scene,
+        scene_hash,
         vox,
         form_factors: ff,
+        facing,
         patches,
         albedo,
         transfer: tr,
@@ -210,6 +224,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         codec_choice: summary.chosen_by.clone(),
         error_lights: b0_samples.len() as u64,
         error_lights_seed: ERROR_LIGHTS_SEED,
+        two_sided: config.two_sided,
     };
     let scene_stored = match &config.output {
         Some(out) => stored_scene_path(out, &config.scene),
@@ -230,7 +245,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     };
     let file = BakeFile {
         options_json: serde_json::to_string(&options).expect("options serialize"),
-        scene_hash: SceneHash::of_scene(&scene)?,
+        scene_hash,
         patches: patches.iter().map(PatchRecord::from).collect(),
         permutation: perm.order.clone(),
         codec: encoded.to_blob(),
@@ -290,6 +305,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
             device,
             voxels: vox.stats,
             form_factors: ff.stats.clone(),
+            facing,
             transfer: tr.stats.clone(),
             reorder: reorder_stats,
             codec: summary,
@@ -311,9 +327,13 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
 /// factors, the kept patches (matrix order) with their albedos, and the
 /// transfer matrix.
 pub struct TransferStages {
+    /// The scene baked (with back sides when two-sided) and the hash of the
+    /// scene as loaded (what the file records).
     pub scene: scene::Scene,
+    pub scene_hash: SceneHash,
     pub vox: voxelize::Voxelization,
     pub form_factors: FormFactors,
+    pub facing: facing::Facing,
     pub patches: Vec<Patch>,
     pub albedo: Vec<[f32; 3]>,
     pub transfer: Transfer,
@@ -332,7 +352,15 @@ pub fn transfer_stages(
 
     progress(&format!("loading {}", config.scene.display()));
     let t = Instant::now();
-    let scene = scene::load(&config.scene)?;
+    let loaded = scene::load(&config.scene)?;
+    // The file records the scene as loaded; two-sided bakes work on its
+    // doubled form, which the run time rebuilds from the option.
+    let scene_hash = SceneHash::of_scene(&loaded)?;
+    let scene = if config.two_sided {
+        loaded.with_back_sides()
+    } else {
+        loaded
+    };
     stages.push(StageTime {
         stage: "load",
         seconds: t.elapsed().as_secs_f64(),
@@ -345,6 +373,12 @@ pub fn transfer_stages(
         stage: "voxelize",
         seconds: t.elapsed().as_secs_f64(),
     });
+    budget::check(
+        vox.patches.len(),
+        "the voxelization's patch count",
+        budget::host_available(),
+        budget_device(backend, &config.transfer),
+    )?;
 
     progress(&format!(
         "form factors for {} patches ({} pairs)",
@@ -368,6 +402,7 @@ pub fn transfer_stages(
         stage: "form factors",
         seconds: t.elapsed().as_secs_f64(),
     });
+    let facing = facing::check(&scene, &vox, &ff, config.two_sided)?;
     let patches: Vec<Patch> = ff.kept.iter().map(|&i| vox.patches[i].clone()).collect();
     let albedo: Vec<[f32; 3]> = patches.iter().map(|p| p.albedo.map(|a| a as f32)).collect();
 
@@ -396,13 +431,30 @@ pub fn transfer_stages(
 
     Ok(TransferStages {
         scene,
+        scene_hash,
         vox,
         form_factors: ff,
+        facing,
         patches,
         albedo,
         transfer: tr,
         stages,
     })
+}
+
+/// The transfer stage's share of the budget on `backend` with `options`:
+/// the padded matrices it keeps on the device ([`transfer::cl_matrices`]).
+fn budget_device<'a>(
+    backend: &'a Backend,
+    options: &transfer::TransferOptions,
+) -> budget::Device<'a> {
+    match backend {
+        Backend::Cpu => budget::Device::CpuReference,
+        Backend::OpenCl(g) => budget::Device::OpenCl {
+            info: g.info(),
+            matrices: transfer::cl_matrices(options),
+        },
+    }
 }
 
 /// The backend of an optional device (`Backend` is not `Copy`).

@@ -113,6 +113,7 @@ pub struct BakeReport {
     pub device: String,
     pub voxels: VoxelStats,
     pub form_factors: FormFactorStats,
+    pub facing: crate::bake::facing::Facing,
     pub transfer: TransferStats,
     pub reorder: ReorderStats,
     pub codec: CodecSummary,
@@ -204,6 +205,21 @@ impl std::fmt::Display for BakeReport {
             v.seconds_pieces, v.seconds_kernels, v.seconds_reduce
         )?;
         writeln!(f, "{}", self.form_factors)?;
+        let fc = &self.facing;
+        writeln!(
+            f,
+            "facing: {:.1} % of the patch area sees nothing{}",
+            100.0 * fc.blind_area_share,
+            if fc.probe_rays > 0 {
+                format!(
+                    "; back-side probe: {:.1} % of {} rays met back faces",
+                    100.0 * fc.probe_back_share,
+                    fc.probe_rays
+                )
+            } else {
+                String::new()
+            }
+        )?;
         writeln!(f, "{}", self.transfer)?;
         let r = &self.reorder;
         writeln!(

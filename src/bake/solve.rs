@@ -16,8 +16,9 @@
 //!   `(tile + N / tile) · 2⁻²⁴` per update; the condition number
 //!   `≈ 1 / (1 − ρ)` amplifies it (tests: ρ up to 0.999 against f64).
 //!
-//! **The blocked algorithm** (block = the product's tile `b`, `N` padded
-//! with identity rows; `nt = N / b` block steps):
+//! **The blocked algorithm** (blocks of `b` rows, `m` tiles of the product
+//! and at least 256, [`block_tiles`]; `N` padded to whole blocks with
+//! identity rows; `nt = N / b` block steps):
 //! 1. right-looking LU: for each block `k`, the `b × b` diagonal block is
 //!    read back and factored on the host in f64 (`L_kk`, `U_kk` and their
 //!    inverses); then on the device the row panel `U_k,>k = L_kk⁻¹ M_k,>k`,
@@ -32,7 +33,9 @@
 //! products (`2 N³` each) for doubling: 17 products at spectral radius 0.9,
 //! 31 at 0.999. Every step is one call of the transfer stage's GEMM kernel
 //! on sub-matrices ([`Gemm::product_at`]); the panels are multiplied in
-//! place. The host touches only the `b × b` diagonal blocks.
+//! place, one tile row or column per launch in an order that never reads
+//! what the same launch writes ([`triangular`]). The host touches only the
+//! `b × b` diagonal blocks.
 
 use crate::bake::error::BakeError;
 use crate::bake::gemm::{At, Gemm, GemmRun};
@@ -40,12 +43,28 @@ use crate::bake::transfer::{ChannelStats, STAGE};
 use crate::core::compute::Access;
 use opencl3::memory::Buffer;
 
-/// Device launches the solve takes for `nt` block steps (progress).
-pub fn launches(nt: usize) -> u64 {
-    // LU: row panel, column panel and trailing update per step but the
-    // last; forward and backward: a panel per step and an update per step
-    // but one.
-    (7 * nt).saturating_sub(5) as u64
+/// Tiles per block step for the product's tile `ts`: blocks of at least
+/// 256 rows, so that each update runs over at least 256 terms of K and the
+/// trailing matrix is read and written half as often as with 128-row
+/// blocks (PoCL's tile on AVX2 is 128).
+pub fn block_tiles(ts: usize) -> usize {
+    256usize.div_ceil(ts.max(1)).max(1)
+}
+
+/// Device launches the solve takes for an `n × n` system with the
+/// product's tile `ts` (progress).
+pub fn launches_for(n: usize, ts: usize) -> u64 {
+    let m = block_tiles(ts);
+    launches(n.div_ceil(m * ts).max(1), m)
+}
+
+/// Device launches the solve takes for `nt` block steps of `m` tiles.
+pub fn launches(nt: usize, m: usize) -> u64 {
+    // LU: row and column panels (m launches each) and the trailing update
+    // per step but the last; forward and backward: a panel per step and an
+    // update per step but one.
+    let nt = nt.max(1);
+    ((2 * m + 1) * (nt - 1) + 2 * m * nt + 2 * (nt - 1)) as u64
 }
 
 /// `T_∞` for one channel with albedos `rho` (row-major `n × n` `f`, the
@@ -59,26 +78,32 @@ pub fn lu_channel(
     tick: &mut dyn FnMut(),
 ) -> Result<Vec<f32>, BakeError> {
     let name = ["R", "G", "B"][cs.channel];
-    let b = g.config().tile;
-    let np = g.padded(n);
+    // Block steps of `m` tiles of the product ([`block_tiles`]).
+    let m = block_tiles(g.config().tile);
+    let b = m * g.config().tile;
+    let np = n.div_ceil(b).max(1) * b;
     let nt = np / b;
-    g.gpu().check_total(STAGE, 2 * g.matrix_bytes(n))?;
-    // M = I − diag(ρ) F, padded with identity rows and columns.
-    let mut m = vec![0.0f32; np * np];
+    g.gpu().check_total(STAGE, 2 * 4 * (np as u64).pow(2))?;
+    // M = I − diag(ρ) F and F, padded to whole blocks (M with identity
+    // rows and columns, F with zeros).
+    let mut mm = vec![0.0f32; np * np];
+    let mut fp = vec![0.0f32; np * np];
     for i in 0..np {
         if i < n {
             let r = rho[i] as f64;
             for j in 0..n {
-                m[i * np + j] = (-(r * f[i * n + j] as f64)) as f32;
+                mm[i * np + j] = (-(r * f[i * n + j] as f64)) as f32;
             }
-            m[i * np + i] = (1.0 - r * f[i * n + i] as f64) as f32;
+            mm[i * np + i] = (1.0 - r * f[i * n + i] as f64) as f32;
+            fp[i * np..i * np + n].copy_from_slice(&f[i * n..(i + 1) * n]);
         } else {
-            m[i * np + i] = 1.0;
+            mm[i * np + i] = 1.0;
         }
     }
-    let (dm, _) = g.upload("M = I - diag(rho) F", np, &m)?;
-    drop(m);
-    let (dx, _) = g.upload("F, then Y, then T", n, f)?;
+    let (dm, _) = g.upload("M = I - diag(rho) F", np, &mm)?;
+    drop(mm);
+    let (dx, _) = g.upload("F, then Y, then T", np, &fp)?;
+    drop(fp);
     let mut account = |run: GemmRun, what: &str| -> Result<(), BakeError> {
         cs.gemms += 1;
         cs.tile_products += run.tile_products;
@@ -97,9 +122,10 @@ pub fn lu_channel(
         }
         Ok(())
     };
+    let upload = |what: &str, v: &[f32]| g.gpu().upload(what, v, Access::ReadOnly);
+    // Sizes below are in tiles of the product: a block is m × m tiles.
     let mut linv: Vec<Vec<f32>> = Vec::with_capacity(nt);
     let mut uinv: Vec<Vec<f32>> = Vec::with_capacity(nt);
-    let upload = |what: &str, v: &[f32]| g.gpu().upload(what, v, Access::ReadOnly);
     // 1. LU.
     for k in 0..nt {
         let kb = k * b;
@@ -113,71 +139,41 @@ pub fn lu_channel(
                 kb + r
             ),
         })?;
-        let rest = nt - k - 1;
+        let rest = (nt - k - 1) * m;
         if rest > 0 {
             let lb = upload("L_kk^-1", &l)?;
             let ub = upload("U_kk^-1", &u)?;
-            let run = g.product_at(
-                small(&lb, b),
-                dm.at(kb, kb + b),
-                dm.at(kb, kb + b),
-                1,
-                rest,
-                1,
-                1.0,
-                false,
-            )?;
-            account(run, &format!("row panel {k}"))?;
-            let run = g.product_at(
-                dm.at(kb + b, kb),
-                small(&ub, b),
-                dm.at(kb + b, kb),
-                rest,
-                1,
-                1,
-                1.0,
-                false,
-            )?;
-            account(run, &format!("column panel {k}"))?;
-            let run = g.product_at(
-                dm.at(kb + b, kb),
-                dm.at(kb, kb + b),
-                dm.at(kb + b, kb + b),
-                rest,
-                rest,
-                1,
-                -1.0,
-                true,
-            )?;
+            let (row, col, trail) = (dm.at(kb, kb + b), dm.at(kb + b, kb), dm.at(kb + b, kb + b));
+            for run in triangular(g, Side::LeftLower, &lb, row, rest, m)? {
+                account(run, &format!("row panel {k}"))?;
+            }
+            for run in triangular(g, Side::RightUpper, &ub, col, rest, m)? {
+                account(run, &format!("column panel {k}"))?;
+            }
+            let run = g.product_at(col, row, trail, rest, rest, m, -1.0, true)?;
             account(run, &format!("trailing update {k}"))?;
         }
         linv.push(l);
         uinv.push(u);
     }
+    let rows = nt * m;
     // 2. Y = F U⁻¹, left to right.
-    for k in 0..nt {
+    for (k, u) in uinv.iter().enumerate() {
         let kb = k * b;
-        let ub = upload("U_kk^-1", &uinv[k])?;
-        let run = g.product_at(
-            dx.at(0, kb),
-            small(&ub, b),
-            dx.at(0, kb),
-            nt,
-            1,
-            1,
-            1.0,
-            false,
-        )?;
-        account(run, &format!("forward panel {k}"))?;
-        let rest = nt - k - 1;
+        let ub = upload("U_kk^-1", u)?;
+        let panel = dx.at(0, kb);
+        for run in triangular(g, Side::RightUpper, &ub, panel, rows, m)? {
+            account(run, &format!("forward panel {k}"))?;
+        }
+        let rest = (nt - k - 1) * m;
         if rest > 0 {
             let run = g.product_at(
-                dx.at(0, kb),
+                panel,
                 dm.at(kb, kb + b),
                 dx.at(0, kb + b),
-                nt,
+                rows,
                 rest,
-                1,
+                m,
                 -1.0,
                 true,
             )?;
@@ -185,35 +181,24 @@ pub fn lu_channel(
         }
     }
     // 3. X = Y L⁻¹, right to left.
-    for k in (0..nt).rev() {
+    for (k, l) in linv.iter().enumerate().rev() {
         let kb = k * b;
-        let lb = upload("L_kk^-1", &linv[k])?;
-        let run = g.product_at(
-            dx.at(0, kb),
-            small(&lb, b),
-            dx.at(0, kb),
-            nt,
-            1,
-            1,
-            1.0,
-            false,
-        )?;
-        account(run, &format!("backward panel {k}"))?;
+        let lb = upload("L_kk^-1", l)?;
+        let panel = dx.at(0, kb);
+        for run in triangular(g, Side::RightLower, &lb, panel, rows, m)? {
+            account(run, &format!("backward panel {k}"))?;
+        }
         if k > 0 {
-            let run = g.product_at(
-                dx.at(0, kb),
-                dm.at(kb, 0),
-                dx.at(0, 0),
-                nt,
-                k,
-                1,
-                -1.0,
-                true,
-            )?;
+            let run = g.product_at(panel, dm.at(kb, 0), dx.at(0, 0), rows, k * m, m, -1.0, true)?;
             account(run, &format!("backward update {k}"))?;
         }
     }
-    let t = g.download("T", &dx)?;
+    let all = g.download("T", &dx)?;
+    let mut t = Vec::with_capacity(n * n);
+    for i in 0..n {
+        t.extend_from_slice(&all[i * np..i * np + n]);
+    }
+    drop(all);
     if let Some(e) = t.iter().position(|x| !x.is_finite()) {
         return Err(BakeError::Numeric {
             stage: STAGE,
@@ -224,13 +209,91 @@ pub fn lu_channel(
     Ok(t)
 }
 
-/// A `b × b` block alone in its buffer, as a product operand.
-fn small(data: &Buffer<f32>, b: usize) -> At<'_> {
+/// Which side and triangle a block inverse multiplies a panel from.
+#[derive(Clone, Copy, PartialEq)]
+enum Side {
+    /// `P ← L⁻¹ P` (a row panel; `L⁻¹` lower triangular).
+    LeftLower,
+    /// `P ← P U⁻¹` (a column panel; `U⁻¹` upper triangular).
+    RightUpper,
+    /// `P ← P L⁻¹` (a column panel; `L⁻¹` lower triangular).
+    RightLower,
+}
+
+/// `at` moved by `rows` and `cols` elements.
+fn shifted(at: At<'_>, rows: usize, cols: usize) -> At<'_> {
     At {
-        data,
+        offset: at.offset + rows * at.pitch + cols,
+        ..at
+    }
+}
+
+/// The panel `p` (`extent` tiles long across the block, `m × m` tiles the
+/// block) times the triangular block inverse `inv` (`m·ts` square, pitch
+/// `m·ts`), in place, in `m` launches of one tile row or column each. The
+/// order makes it safe: a launch writes one tile row (column) of the panel
+/// and reads only rows (columns) that no earlier launch wrote — for
+/// `L⁻¹ P`, row `i` needs rows `≤ i`, so rows go from the last to the
+/// first; for `P U⁻¹` column `j` needs columns `≤ j` (last to first); for
+/// `P L⁻¹` columns `≥ j` (first to last). Within a launch every work-group
+/// reads the tile it writes only before its epilogue, and no tile another
+/// work-group of the launch writes.
+fn triangular(
+    g: &Gemm,
+    side: Side,
+    inv: &Buffer<f32>,
+    p: At<'_>,
+    extent: usize,
+    m: usize,
+) -> Result<Vec<GemmRun>, BakeError> {
+    let ts = g.config().tile;
+    let b = m * ts;
+    let inv = At {
+        data: inv,
         offset: 0,
         pitch: b,
+    };
+    let mut runs = Vec::with_capacity(m);
+    let order: Vec<usize> = match side {
+        Side::LeftLower | Side::RightUpper => (0..m).rev().collect(),
+        Side::RightLower => (0..m).collect(),
+    };
+    for i in order {
+        let o = i * ts;
+        runs.push(match side {
+            Side::LeftLower => g.product_at(
+                shifted(inv, o, 0),
+                p,
+                shifted(p, o, 0),
+                1,
+                extent,
+                i + 1,
+                1.0,
+                false,
+            )?,
+            Side::RightUpper => g.product_at(
+                p,
+                shifted(inv, 0, o),
+                shifted(p, 0, o),
+                extent,
+                1,
+                i + 1,
+                1.0,
+                false,
+            )?,
+            Side::RightLower => g.product_at(
+                shifted(p, 0, o),
+                shifted(inv, o, o),
+                shifted(p, 0, o),
+                extent,
+                1,
+                m - i,
+                1.0,
+                false,
+            )?,
+        });
     }
+    Ok(runs)
 }
 
 /// LU of the `b × b` row-major block `d` without pivoting, in f64, and the

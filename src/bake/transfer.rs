@@ -325,6 +325,18 @@ impl Transfer {
     }
 }
 
+/// Padded `n × n` matrices the OpenCL transfer keeps on the device at once
+/// with `options`: 2 for the LU solve, 3 for doubling, 5 when Horner steps
+/// keep `F` and `Q` (as `cl_channel` and `solve::lu_channel` check).
+pub fn cl_matrices(options: &TransferOptions) -> u64 {
+    match options.bounces {
+        Bounces::Infinite if options.infinite == InfiniteMethod::Solve => 2,
+        Bounces::Infinite => 3,
+        Bounces::K(k) if plan_bounces(k).1 > 0 => 5,
+        Bounces::K(_) => 3,
+    }
+}
+
 /// `(doublings, horner_steps)` for `T_k` with the fewest products:
 /// `d` doublings cost `2d − 1` products and reach `2^d` bounces, each
 /// Horner step one product and one bounce.
@@ -478,9 +490,7 @@ pub fn transfer(
     let per_channel_gemms = |c: usize, tile: usize| -> u64 {
         match options.bounces {
             Bounces::K(k) => planned_gemms(k) as u64,
-            Bounces::Infinite if solves(c) && tile > 0 => {
-                crate::bake::solve::launches(n.div_ceil(tile))
-            }
+            Bounces::Infinite if solves(c) && tile > 0 => crate::bake::solve::launches_for(n, tile),
             Bounces::Infinite => 2 * expected_doublings(bounds[c]) as u64 - 1,
         }
     };

@@ -350,8 +350,16 @@ impl std::fmt::Display for FileSummary {
         )?;
         writeln!(
             f,
-            "patches: {}; voxel size {}; bounces: {}; reorder: {}",
-            self.patches, self.options.voxel_size, self.bounces, self.reorder
+            "patches: {}; voxel size {}; bounces: {}; reorder: {}; {}",
+            self.patches,
+            self.options.voxel_size,
+            self.bounces,
+            self.reorder,
+            if self.options.two_sided {
+                "two-sided (patches on both sides of every surface)"
+            } else {
+                "one-sided"
+            }
         )?;
         let entries = (self.patches * self.patches).max(1) as f64;
         writeln!(

@@ -88,6 +88,11 @@ pub struct OptionsRecord {
     /// The seeded random lights the compression error was measured over.
     pub error_lights: u64,
     pub error_lights_seed: u64,
+    /// Patches on both sides of every surface: the run time rebuilds the
+    /// baked scene with `Scene::with_back_sides`. Absent in older files
+    /// (false).
+    #[serde(default)]
+    pub two_sided: bool,
 }
 
 /// `INFO`: what the bake found and measured, for `info` and for users.

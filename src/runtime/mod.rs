@@ -116,6 +116,13 @@ impl Runtime {
     /// Prepares `baked` (from `scene`) for frames.
     pub fn new(baked: Baked, scene: Scene, options: RuntimeOptions) -> Runtime {
         let n = baked.patches.len();
+        // A two-sided bake was made of the scene with back sides: its
+        // sample points and surface map index the doubled triangles.
+        let scene = if baked.options.two_sided {
+            scene.with_back_sides()
+        } else {
+            scene
+        };
         let gather = CompressedGather::new(&baked.matrix, options.simd);
         let emission = Emission::new(&baked, &scene);
         Runtime {

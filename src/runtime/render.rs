@@ -125,6 +125,7 @@ pub fn render(
     let far = 4.0 * rt.direct.far();
     let h = rt.h();
     let map = &rt.baked.surface_map;
+    let two_sided = rt.baked.options.two_sided;
     let rows: Vec<(Vec<[f32; 3]>, Vec<bool>, RenderStats)> = (0..height)
         .into_par_iter()
         .map(|py| {
@@ -138,12 +139,18 @@ pub fn render(
                     continue;
                 };
                 s.hits += 1;
-                let tri = bvh.order[k as usize] as usize;
-                let ng = scene.triangle_normal(tri);
-                if dot(ng, d) >= 0.0 {
-                    s.back_faces += 1;
-                    continue;
+                let mut tri = bvh.order[k as usize] as usize;
+                if dot(scene.triangle_normal(tri), d) >= 0.0 {
+                    if !two_sided {
+                        s.back_faces += 1;
+                        continue;
+                    }
+                    // The coincident twin faces the camera
+                    // (`Scene::with_back_sides`: twins are T apart).
+                    let half = scene.triangles.len() / 2;
+                    tri = if tri < half { tri + half } else { tri - half };
                 }
+                let ng = scene.triangle_normal(tri);
                 cov[px] = true;
                 let x = add(o, scale(d, t * far));
                 let m = scene.triangle_material[tri] as usize;

@@ -41,6 +41,7 @@
 //! exact for planar squares.
 
 use super::{FormFactorOptions, FormFactorStats, FormFactors, ROW_SUM_TOL};
+use crate::bake::cover::COVER_LIFT;
 use crate::bake::error::BakeError;
 use crate::bake::pieces::{self, PieceGeo, PieceLookup};
 use crate::bake::voxelize::{Cover, Voxelization};
@@ -294,13 +295,26 @@ fn emit(
         let o = sub(add(x, scale(n, offset)), shift);
         match bvh.closest_hit(o, scale(d, far)) {
             None => c.escaped += 1,
-            Some((leaf, tp)) => {
-                let tri = bvh.order[leaf as usize] as usize;
-                let nt = geo_normal(bvh, leaf);
-                if dot(nt, d) >= 0.0 {
-                    c.back += 1;
-                    continue;
+            Some((mut leaf, tp)) => {
+                if dot(geo_normal(bvh, leaf), d) >= 0.0 {
+                    // The back of a surface, unless a front face coincides
+                    // with it (a two-sided surface modelled as two
+                    // triangles, or `Scene::with_back_sides`): then that
+                    // front face is what the ray meets (as the cover rule's
+                    // `front_at`).
+                    let e = COVER_LIFT * vox.grid.size;
+                    let start = add(o, scale(d, tp * far - e));
+                    match bvh.any_hit(start, scale(d, 2.0 * e), |k, _| {
+                        dot(geo_normal(bvh, k), d) >= 0.0
+                    }) {
+                        Some(front) => leaf = front,
+                        None => {
+                            c.back += 1;
+                            continue;
+                        }
+                    }
                 }
+                let tri = bvh.order[leaf as usize] as usize;
                 let y = add(add(o, scale(d, tp * far)), shift);
                 match lookup.find(vox, tri, y).and_then(|p| vox.pieces[p].patch) {
                     Some(j) => {

@@ -212,6 +212,31 @@ impl Scene {
         0.5 * norm(cross(sub(b, a), sub(c, a)))
     }
 
+    /// The scene with a back side for every surface: each triangle `t` of
+    /// the `T` is followed, at index `t + T`, by its twin with the opposite
+    /// winding on its own copies of the vertices (normals negated, texture
+    /// coordinates kept), with the same material. A bake of it gives
+    /// patches on both sides of every surface (scenes whose winding cannot
+    /// be trusted); the covered-point rule does not let a surface's twin
+    /// cover it (a coincident front face cancels a back face,
+    /// [`crate::bake::cover`]).
+    pub fn with_back_sides(&self) -> Scene {
+        let mut s = self.clone();
+        let v = self.positions.len() as u32;
+        s.positions.extend_from_slice(&self.positions);
+        s.normals
+            .extend(self.normals.iter().map(|n| [-n[0], -n[1], -n[2]]));
+        s.texcoords.extend_from_slice(&self.texcoords);
+        s.triangles.extend(
+            self.triangles
+                .iter()
+                .map(|t| [t[0] + v, t[2] + v, t[1] + v]),
+        );
+        s.triangle_material
+            .extend_from_slice(&self.triangle_material);
+        s
+    }
+
     /// Every triangle's unit normal ([`Scene::triangle_normal`]), in triangle
     /// order.
     pub fn triangle_normals(&self) -> Vec<[f64; 3]> {
