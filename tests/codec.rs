@@ -573,6 +573,13 @@ fn check_accepts_encodings_and_catches_corruption() {
     ] {
         let e = encode::encode(kind, refs(&t), n).unwrap();
         e.check().unwrap();
+        // The error measure's one-pass gather over many B0 is the f64
+        // gather of each, bit for bit.
+        let b1: [Vec<f32>; 3] =
+            std::array::from_fn(|c| b0[c].iter().map(|&v| 0.5 * v + 0.125 * c as f32).collect());
+        let many = e.gather_many_f64(&[refs(&b0), refs(&b1)]);
+        assert_eq!(many[0], e.gather_f64(refs(&b0)), "{kind}");
+        assert_eq!(many[1], e.gather_f64(refs(&b1)), "{kind}");
         let mut bad = e.clone();
         bad.dense.truncate(bad.dense.len() - 1);
         assert!(bad.check().is_err(), "{kind}: truncated dense part");

@@ -303,8 +303,14 @@ pub fn expected_bytes_per_entry(kind: CodecKind) -> f64 {
 /// samples, channels and patches as in [`CodecError::rel_rms_h`].
 pub fn h_error(e: &Encoded, reference: &[[Vec<f64>; 3]], b0_samples: &[[Vec<f32>; 3]]) -> f64 {
     let (mut d2, mut r2) = (0.0f64, 0.0f64);
-    for (h, b0) in reference.iter().zip(b0_samples) {
-        let g = e.gather_f64([&b0[0], &b0[1], &b0[2]]);
+    // All samples in one pass over the matrix (each tile decoded once);
+    // in groups, so that the accumulators of a row of tiles stay small.
+    let mut gathered = Vec::with_capacity(b0_samples.len());
+    for group in b0_samples.chunks(64) {
+        let b0s: Vec<[&[f32]; 3]> = group.iter().map(|b| [&b[0][..], &b[1], &b[2]]).collect();
+        gathered.extend(e.gather_many_f64(&b0s));
+    }
+    for (h, g) in reference.iter().zip(&gathered) {
         for c in 0..3 {
             for (a, b) in h[c].iter().zip(&g[c]) {
                 d2 += (b - a) * (b - a);

@@ -29,6 +29,88 @@ impl Encoded {
         self.gather_in::<f64>(b0)
     }
 
+    /// [`Encoded::gather_f64`] for many `B0` at once, each tile decoded
+    /// once for all of them (the bake's error measure over its error
+    /// lights: one decode instead of one per light). Every result equals
+    /// `gather_f64` of its `B0` bit for bit: the same terms in the same
+    /// order.
+    pub fn gather_many_f64(&self, b0s: &[[&[f32]; 3]]) -> Vec<[Vec<f64>; 3]> {
+        let n = self.n;
+        for b0 in b0s {
+            for b in b0 {
+                assert_eq!(b.len(), n, "B0 must have one value per patch");
+            }
+        }
+        let k = b0s.len();
+        let book = self.codebook();
+        let s = self.image_size;
+        let tile = self.index.tile;
+        let ch = self.channels;
+        // Per row of tiles: acc[sample][row][channel].
+        let per_row: Vec<Vec<Vec<[f64; 3]>>> = (0..self.index.tiles_per_side)
+            .into_par_iter()
+            .map(|tr| {
+                let r0 = tr * tile;
+                let h = tile.min(s - r0);
+                let mut acc = vec![vec![[0.0f64; 3]; h]; k];
+                let mut buf = vec![0.0f32; tile * tile * ch];
+                let (a, b) = (
+                    self.index.row_start[tr] as usize,
+                    self.index.row_start[tr + 1] as usize,
+                );
+                for slot in a..b {
+                    let c0 = self.index.cols[slot] as usize * tile;
+                    let w = tile.min(s - c0);
+                    self.decode_tile(&book, slot, h, w, &mut buf);
+                    let rows = h.min(n.saturating_sub(r0));
+                    let cols = w.min(n.saturating_sub(c0));
+                    for (acc_s, b0) in acc.iter_mut().zip(b0s) {
+                        for (r, acc_r) in acc_s.iter_mut().enumerate().take(rows) {
+                            for c in 0..cols {
+                                let v = &buf[(r * w + c) * ch..(r * w + c + 1) * ch];
+                                for (oc, out) in acc_r.iter_mut().enumerate() {
+                                    *out += v[oc.min(ch - 1)] as f64 * b0[oc][c0 + c] as f64;
+                                }
+                            }
+                        }
+                    }
+                }
+                acc
+            })
+            .collect();
+        let sp = &self.sparse;
+        let sch = self.channels;
+        (0..k)
+            .into_par_iter()
+            .map(|si| {
+                let b0 = &b0s[si];
+                let mut h: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+                for (tr, acc) in per_row.iter().enumerate() {
+                    for (r, v) in acc[si].iter().enumerate() {
+                        let i = tr * tile + r;
+                        if i < n {
+                            for oc in 0..3 {
+                                h[oc][i] = v[oc];
+                            }
+                        }
+                    }
+                }
+                if !sp.is_empty() {
+                    for (i, window) in sp.row_ptr.windows(2).enumerate() {
+                        for e in window[0] as usize..window[1] as usize {
+                            let j = sp.cols[e] as usize;
+                            for (oc, hc) in h.iter_mut().enumerate() {
+                                hc[i] += sp.values[e * sch + oc.min(sch - 1)] as f64
+                                    * b0[oc][j] as f64;
+                            }
+                        }
+                    }
+                }
+                h
+            })
+            .collect()
+    }
+
     /// The gather with accumulators of type `A`.
     fn gather_in<A>(&self, b0: [&[f32]; 3]) -> [Vec<A>; 3]
     where
