@@ -157,6 +157,17 @@ enum BenchCommand {
         #[command(flatten)]
         device: DeviceArgs,
     },
+    /// T_inf of a real scene by the LU solve and by doubling, against the
+    /// f64 solve (one channel, R), after the bake's first stages.
+    Solve {
+        /// The scene (OBJ).
+        scene: PathBuf,
+        /// Comma-separated patch targets.
+        #[arg(long, value_delimiter = ',', default_value = "4000")]
+        patches: Vec<usize>,
+        #[command(flatten)]
+        device: DeviceArgs,
+    },
     /// Transfer stage: GEMM throughput against faer, and the stress table
     /// (error against the f64 reference over albedos and sizes).
     Transfer {
@@ -530,6 +541,24 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 no_cpu_reference,
                 device,
             } => bench_form_factors(&scene, &patches, no_cpu_reference, device),
+            BenchCommand::Solve {
+                scene,
+                patches,
+                device,
+            } => {
+                let gpu = Gpu::new(DeviceSelection::from_flag_or_env(device.device)?)
+                    .context("opening the OpenCL device")?;
+                let backend = Backend::OpenCl(&gpu);
+                println!(
+                    "## T_inf of {}: LU solve and doubling against f64 (channel R)\n",
+                    scene.display()
+                );
+                let table = bench::transfer::bench_solve(&scene, &patches, &backend, &mut |l| {
+                    eprintln!("[bench] {l}")
+                })?;
+                print!("{table}");
+                Ok(())
+            }
             BenchCommand::Transfer {
                 gemm_sizes,
                 stress_sizes,

@@ -255,3 +255,71 @@ pub fn bench_gemm(sizes: &[usize], repeat: usize, backend: &Backend) -> Result<S
     }
     Ok(out)
 }
+
+/// `T_∞` of a real scene by the LU solve and by doubling in the same run,
+/// against faer's f64 solve: for each patch target, the bake's first stages
+/// (load, voxelize, form factors), then the three computations of one
+/// channel (R: the channel of the largest albedos, so doubling's worst) on
+/// the same `F`. Returns markdown with times, products and errors.
+pub fn bench_solve(
+    scene: &std::path::Path,
+    patches: &[usize],
+    backend: &Backend,
+    progress: &mut dyn FnMut(&str),
+) -> anyhow::Result<String> {
+    use crate::bake::voxelize::Resolution;
+    use crate::bake::{self, BakeConfig};
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "| patch target | n | T_∞ by | GEMM launches | GFLOP | GEMM device s | GFLOP/s | stage wall s | rel. Frobenius vs f64 | max rel. entry error (entries ≥ 1e-6 of the max) |"
+    );
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|");
+    for &p in patches {
+        let mut config = BakeConfig::new(scene.to_path_buf(), Resolution::Patches(p));
+        config.transfer.bounces = Bounces::K(1);
+        let st = bake::transfer_stages(&config, backend, progress)?;
+        let n = st.form_factors.n;
+        let f = &st.form_factors.f;
+        let rho: Vec<[f32; 3]> = st.albedo.iter().map(|a| [a[0]; 3]).collect();
+        progress(&format!("f64 reference solve, n = {n}"));
+        let start = Instant::now();
+        let rho64: Vec<f64> = rho.iter().map(|a| a[0] as f64).collect();
+        let reference_t = reference(f, n, &rho64, Bounces::Infinite)?;
+        let ref_seconds = start.elapsed().as_secs_f64();
+        let max = reference_t.iter().cloned().fold(0.0f64, f64::max);
+        for method in [InfiniteMethod::Solve, InfiniteMethod::Doubling] {
+            progress(&format!("T_inf by {method:?}, n = {n}"));
+            let options = TransferOptions {
+                infinite: method,
+                ..TransferOptions::default()
+            };
+            let t = transfer(f, n, &rho, &options, backend, &mut |_, _| {})?;
+            let tm = t.channel(0);
+            let worst = tm
+                .iter()
+                .zip(&reference_t)
+                .filter(|(_, &y)| y >= 1e-6 * max)
+                .map(|(&x, &y)| (x as f64 - y).abs() / y)
+                .fold(0.0, f64::max);
+            let s = &t.stats;
+            let _ = writeln!(
+                out,
+                "| {p} | {n} | {} | {} | {:.0} | {:.1} | {:.1} | {:.1} | {:.1e} | {:.1e} |",
+                s.per_channel[0].method,
+                s.gemms,
+                s.gflop,
+                s.seconds_gemm,
+                s.gflops,
+                s.seconds_total,
+                relative_frobenius(tm, &reference_t),
+                worst
+            );
+        }
+        let _ = writeln!(
+            out,
+            "| {p} | {n} | f64 reference (faer LU, partial pivoting) | — | — | — | — | {ref_seconds:.1} | 0 | 0 |"
+        );
+    }
+    Ok(out)
+}
