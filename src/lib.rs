@@ -76,10 +76,12 @@
 //! ## Invariants
 //! - Every OpenCL kernel (`kernels/*.cl`, embedded with `include_str!`) has a
 //!   Rust CPU reference, and a test compares the two with a tolerance derived
-//!   from f32 rounding. Every GLSL shader (`glsl/`) will have one in
-//!   `runtime`.
+//!   from f32 rounding. Every GLSL shader (`glsl/`) has one in
+//!   [`runtime`] (the gather: `glsl/gather.comp` against
+//!   [`runtime::gather`]).
 //! - OpenCL code lives in [`core::compute`] and the stage modules' `cl_*`
-//!   functions; GL code will live in `gl` only.
+//!   functions; GL code lives in [`gl`] only, which imports the run time
+//!   and the contract, never a bake stage.
 //! - No import cycle between modules; types shared by several stages live in
 //!   [`core`] (the patch, its frame, the permutation), not in the first stage
 //!   that needed them.
@@ -108,6 +110,7 @@ pub mod bakefile;
 pub mod bench;
 pub mod core;
 pub mod generate;
+pub mod gl;
 pub mod reference;
 pub mod runtime;
 pub mod synthetic;

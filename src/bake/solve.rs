@@ -39,7 +39,19 @@
 
 use crate::bake::error::BakeError;
 use crate::bake::gemm::{At, Gemm, GemmRun};
-use crate::bake::transfer::{ChannelStats, STAGE};
+
+/// Errors name the transfer stage, which this solve is part of.
+const STAGE: &str = "transfer";
+
+/// What the solve of one channel did.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SolveRun {
+    /// Product launches, tile products, device seconds and GFLOP.
+    pub launches: u32,
+    pub tile_products: u64,
+    pub seconds: f64,
+    pub gflop: f64,
+}
 use crate::core::compute::Access;
 use opencl3::memory::Buffer;
 
@@ -67,17 +79,20 @@ pub fn launches(nt: usize, m: usize) -> u64 {
     ((2 * m + 1) * (nt - 1) + 2 * m * nt + 2 * (nt - 1)) as u64
 }
 
-/// `T_∞` for one channel with albedos `rho` (row-major `n × n` `f`, the
-/// result likewise). `tick()` is called after every device launch.
+/// `T_∞` for colour channel `channel` with albedos `rho` (row-major
+/// `n × n` `f`, the result likewise); `spectral_bound` (`max_i ρ_i Σ_j
+/// F_ij`) is named in errors. `tick()` is called after every device launch.
 pub fn lu_channel(
     g: &Gemm,
     f: &[f32],
     n: usize,
     rho: &[f32],
-    cs: &mut ChannelStats,
+    channel: usize,
+    spectral_bound: f64,
     tick: &mut dyn FnMut(),
-) -> Result<Vec<f32>, BakeError> {
-    let name = ["R", "G", "B"][cs.channel];
+) -> Result<(Vec<f32>, SolveRun), BakeError> {
+    let name = ["R", "G", "B"][channel];
+    let mut cs = SolveRun::default();
     // Block steps of `m` tiles of the product ([`block_tiles`]).
     let m = block_tiles(g.config().tile);
     let b = m * g.config().tile;
@@ -105,9 +120,9 @@ pub fn lu_channel(
     let (dx, _) = g.upload("F, then Y, then T", np, &fp)?;
     drop(fp);
     let mut account = |run: GemmRun, what: &str| -> Result<(), BakeError> {
-        cs.gemms += 1;
+        cs.launches += 1;
         cs.tile_products += run.tile_products;
-        cs.seconds_gemm += run.seconds;
+        cs.seconds += run.seconds;
         cs.gflop += run.flops * 1e-9;
         tick();
         if run.nonfinite() {
@@ -115,8 +130,7 @@ pub fn lu_channel(
                 stage: STAGE,
                 detail: format!(
                     "a non-finite value appeared in channel {name} at {what} of the LU solve \
-                     (spectral bound max_i rho_i sum_j F_ij = {:.6})",
-                    cs.spectral_bound
+                     (spectral bound max_i rho_i sum_j F_ij = {spectral_bound:.6})"
                 ),
             });
         }
@@ -205,8 +219,7 @@ pub fn lu_channel(
             detail: format!("non-finite T entry {e} in channel {name} after the LU solve"),
         });
     }
-    cs.terms = 0;
-    Ok(t)
+    Ok((t, cs))
 }
 
 /// Which side and triangle a block inverse multiplies a panel from.

@@ -536,7 +536,14 @@ pub fn transfer(
                         done += 1;
                         progress(done, total.max(done));
                     };
-                    crate::bake::solve::lu_channel(g, f, n, &rho, &mut cs, &mut tick)?
+                    let (t, run) =
+                        crate::bake::solve::lu_channel(g, f, n, &rho, c, bounds[c], &mut tick)?;
+                    cs.gemms = run.launches;
+                    cs.tile_products = run.tile_products;
+                    cs.seconds_gemm = run.seconds;
+                    cs.gflop = run.gflop;
+                    cs.terms = 0;
+                    t
                 }
                 Some(g) => {
                     cs.method = match options.bounces {

@@ -100,8 +100,8 @@ impl Encoded {
                         for e in window[0] as usize..window[1] as usize {
                             let j = sp.cols[e] as usize;
                             for (oc, hc) in h.iter_mut().enumerate() {
-                                hc[i] += sp.values[e * sch + oc.min(sch - 1)] as f64
-                                    * b0[oc][j] as f64;
+                                hc[i] +=
+                                    sp.values[e * sch + oc.min(sch - 1)] as f64 * b0[oc][j] as f64;
                             }
                         }
                     }

@@ -1,0 +1,64 @@
+// The gather H = T~ . B0 on the GPU (host: src/gl/gather.rs; CPU reference:
+// src/runtime/gather.rs). The #version line and the TILE define are added
+// by the host (src/gl/mod.rs).
+//
+// One work-group per row of tiles, one invocation per matrix row i. The
+// dense part is the BC1 texture of log-scaled entries, its stored tiles in
+// an atlas (stored tile s at atlas tile (s % atlas_tiles_x, s / atlas_tiles_x)),
+// read with texelFetch only: a filtered read would blend neighbouring
+// matrix entries. Zero tiles are not stored (the tile index lists the
+// stored ones); tiles whose column of B0 is zero in every channel are
+// skipped (tile_active, built per frame by the host). The decoded byte x in
+// [0, 1] of channel c is the entry scale_c * exp(L (x - 1)), and 0 for
+// x = 0 (bakefile::codec, "Log scale"). Then the exact sparse part of row i.
+
+layout(local_size_x = TILE) in;
+
+layout(binding = 0) uniform sampler2D atlas;
+
+layout(std430, binding = 0) readonly buffer RowStart { uint row_start[]; };
+layout(std430, binding = 1) readonly buffer TileCol { uint tile_col[]; };
+layout(std430, binding = 2) readonly buffer B0 { float b0[]; };          // 3 n, channel-major
+layout(std430, binding = 3) readonly buffer Active { uint tile_active[]; }; // per tile column
+layout(std430, binding = 4) readonly buffer SparseRow { uint sparse_row[]; };
+layout(std430, binding = 5) readonly buffer SparseCol { uint sparse_col[]; };
+layout(std430, binding = 6) readonly buffer SparseVal { float sparse_val[]; }; // 3 per position
+layout(std430, binding = 7) writeonly buffer H { float h[]; };         // 3 n, channel-major
+
+uniform uint n;
+uniform uint atlas_tiles_x;
+uniform vec3 scale;
+uniform float log_range;
+
+void main() {
+    uint tr = gl_WorkGroupID.x;
+    uint r = gl_LocalInvocationID.x;
+    uint i = tr * TILE + r;
+    if (i >= n) {
+        return;
+    }
+    vec3 acc = vec3(0.0);
+    for (uint s = row_start[tr]; s < row_start[tr + 1u]; s++) {
+        uint tc = tile_col[s];
+        if (tile_active[tc] == 0u) {
+            continue;
+        }
+        ivec2 base = ivec2(int((s % atlas_tiles_x) * TILE), int((s / atlas_tiles_x) * TILE + r));
+        uint c0 = tc * TILE;
+        uint w = min(uint(TILE), n - c0);
+        for (uint c = 0u; c < w; c++) {
+            vec3 x = texelFetch(atlas, base + ivec2(int(c), 0), 0).rgb;
+            vec3 v = mix(vec3(0.0), scale * exp(log_range * (x - 1.0)), greaterThan(x, vec3(0.0)));
+            uint j = c0 + c;
+            acc += v * vec3(b0[j], b0[n + j], b0[2u * n + j]);
+        }
+    }
+    for (uint e = sparse_row[i]; e < sparse_row[i + 1u]; e++) {
+        uint j = sparse_col[e];
+        vec3 v = vec3(sparse_val[3u * e], sparse_val[3u * e + 1u], sparse_val[3u * e + 2u]);
+        acc += v * vec3(b0[j], b0[n + j], b0[2u * n + j]);
+    }
+    h[i] = acc.r;
+    h[n + i] = acc.g;
+    h[2u * n + i] = acc.b;
+}
