@@ -35,6 +35,39 @@ impl Encoded {
     /// `gather_f64` of its `B0` bit for bit: the same terms in the same
     /// order.
     pub fn gather_many_f64(&self, b0s: &[[&[f32]; 3]]) -> Vec<[Vec<f64>; 3]> {
+        self.gather_many_in::<f64>(b0s)
+    }
+
+    /// The gather with accumulators of type `A`.
+    fn gather_in<A>(&self, b0: [&[f32]; 3]) -> [Vec<A>; 3]
+    where
+        A: Copy
+            + Default
+            + Send
+            + Sync
+            + std::ops::AddAssign
+            + std::ops::Mul<Output = A>
+            + From<f32>,
+    {
+        self.gather_many_in::<A>(&[b0])
+            .pop()
+            .expect("one result per B0")
+    }
+
+    /// The gather of every `B0` in `b0s` with accumulators of type `A`:
+    /// per row of tiles, the stored tiles decoded once and multiplied by
+    /// each `B0` (accumulated in column order), then the sparse entries of
+    /// each row.
+    fn gather_many_in<A>(&self, b0s: &[[&[f32]; 3]]) -> Vec<[Vec<A>; 3]>
+    where
+        A: Copy
+            + Default
+            + Send
+            + Sync
+            + std::ops::AddAssign
+            + std::ops::Mul<Output = A>
+            + From<f32>,
+    {
         let n = self.n;
         for b0 in b0s {
             for b in b0 {
@@ -47,12 +80,12 @@ impl Encoded {
         let tile = self.index.tile;
         let ch = self.channels;
         // Per row of tiles: acc[sample][row][channel].
-        let per_row: Vec<Vec<Vec<[f64; 3]>>> = (0..self.index.tiles_per_side)
+        let per_row: Vec<Vec<Vec<[A; 3]>>> = (0..self.index.tiles_per_side)
             .into_par_iter()
             .map(|tr| {
                 let r0 = tr * tile;
                 let h = tile.min(s - r0);
-                let mut acc = vec![vec![[0.0f64; 3]; h]; k];
+                let mut acc = vec![vec![[A::default(); 3]; h]; k];
                 let mut buf = vec![0.0f32; tile * tile * ch];
                 let (a, b) = (
                     self.index.row_start[tr] as usize,
@@ -69,7 +102,7 @@ impl Encoded {
                             for c in 0..cols {
                                 let v = &buf[(r * w + c) * ch..(r * w + c + 1) * ch];
                                 for (oc, out) in acc_r.iter_mut().enumerate() {
-                                    *out += v[oc.min(ch - 1)] as f64 * b0[oc][c0 + c] as f64;
+                                    *out += A::from(v[oc.min(ch - 1)]) * A::from(b0[oc][c0 + c]);
                                 }
                             }
                         }
@@ -84,7 +117,7 @@ impl Encoded {
             .into_par_iter()
             .map(|si| {
                 let b0 = &b0s[si];
-                let mut h: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+                let mut h: [Vec<A>; 3] = std::array::from_fn(|_| vec![A::default(); n]);
                 for (tr, acc) in per_row.iter().enumerate() {
                     for (r, v) in acc[si].iter().enumerate() {
                         let i = tr * tile + r;
@@ -100,8 +133,8 @@ impl Encoded {
                         for e in window[0] as usize..window[1] as usize {
                             let j = sp.cols[e] as usize;
                             for (oc, hc) in h.iter_mut().enumerate() {
-                                hc[i] +=
-                                    sp.values[e * sch + oc.min(sch - 1)] as f64 * b0[oc][j] as f64;
+                                hc[i] += A::from(sp.values[e * sch + oc.min(sch - 1)])
+                                    * A::from(b0[oc][j]);
                             }
                         }
                     }
@@ -109,75 +142,6 @@ impl Encoded {
                 h
             })
             .collect()
-    }
-
-    /// The gather with accumulators of type `A`.
-    fn gather_in<A>(&self, b0: [&[f32]; 3]) -> [Vec<A>; 3]
-    where
-        A: Copy + Default + Send + std::ops::AddAssign + std::ops::Mul<Output = A> + From<f32>,
-    {
-        let n = self.n;
-        for b in &b0 {
-            assert_eq!(b.len(), n, "B0 must have one value per patch");
-        }
-        let book = self.codebook();
-        let s = self.image_size;
-        let tile = self.index.tile;
-        let ch = self.channels;
-        let per_row: Vec<Vec<[A; 3]>> = (0..self.index.tiles_per_side)
-            .into_par_iter()
-            .map(|tr| {
-                let r0 = tr * tile;
-                let h = tile.min(s - r0);
-                let mut acc = vec![[A::default(); 3]; h];
-                let mut buf = vec![0.0f32; tile * tile * ch];
-                let (a, b) = (
-                    self.index.row_start[tr] as usize,
-                    self.index.row_start[tr + 1] as usize,
-                );
-                for slot in a..b {
-                    let c0 = self.index.cols[slot] as usize * tile;
-                    let w = tile.min(s - c0);
-                    self.decode_tile(&book, slot, h, w, &mut buf);
-                    for (r, acc_r) in acc.iter_mut().enumerate() {
-                        if r0 + r >= n {
-                            break;
-                        }
-                        for c in 0..w.min(n.saturating_sub(c0)) {
-                            let v = &buf[(r * w + c) * ch..(r * w + c + 1) * ch];
-                            for (oc, out) in acc_r.iter_mut().enumerate() {
-                                *out += A::from(v[oc.min(ch - 1)]) * A::from(b0[oc][c0 + c]);
-                            }
-                        }
-                    }
-                }
-                acc
-            })
-            .collect();
-        let mut h: [Vec<A>; 3] = std::array::from_fn(|_| vec![A::default(); n]);
-        for (tr, acc) in per_row.iter().enumerate() {
-            for (r, v) in acc.iter().enumerate() {
-                let i = tr * tile + r;
-                if i < n {
-                    for oc in 0..3 {
-                        h[oc][i] = v[oc];
-                    }
-                }
-            }
-        }
-        let sp = &self.sparse;
-        if !sp.is_empty() {
-            let sch = self.channels;
-            for (i, window) in sp.row_ptr.windows(2).enumerate() {
-                for e in window[0] as usize..window[1] as usize {
-                    let j = sp.cols[e] as usize;
-                    for (oc, hc) in h.iter_mut().enumerate() {
-                        hc[i] += A::from(sp.values[e * sch + oc.min(sch - 1)]) * A::from(b0[oc][j]);
-                    }
-                }
-            }
-        }
-        h
     }
 
     /// The tables and scales the decoder needs.
