@@ -16,7 +16,9 @@
 //!   solve, three for doubling (five with Horner steps); on a CPU device
 //!   (PoCL) these live in the same RAM and are added to the host's share;
 //! - the CPU f64 reference: faer's f64 matrices (`M`, its LU, `F` and `T`,
-//!   `32n²`) on top of the above.
+//!   `32n²`) on top of the above;
+//! - inspection exports: the decoded matrix and its reordered copy
+//!   (`24n²`) on top.
 //!
 //! The bake file addresses `n²` matrix entries with 32-bit indices
 //! ([`crate::bake::encode`]): `n ≤ 65,535`.
@@ -31,6 +33,8 @@ pub const STAGE: &str = "memory budget";
 const HOST_PER_ENTRY: u64 = 32;
 /// Extra host bytes per `n²` of the CPU f64 reference.
 const CPU_REFERENCE_PER_ENTRY: u64 = 32;
+/// Extra host bytes per `n²` of the inspection exports.
+const EXPORT_PER_ENTRY: u64 = 24;
 /// The largest `n` whose `n²` fits the codec's 32-bit entry indices.
 pub const MAX_PATCHES_FORMAT: usize = 65_535;
 
@@ -50,10 +54,12 @@ pub struct Needs {
     pub device: u64,
 }
 
-/// The bytes `n` patches need on the host and on the device.
-pub fn needs(n: usize, device: Device) -> Needs {
+/// The bytes `n` patches need on the host and on the device (`export`:
+/// with the inspection exports).
+pub fn needs(n: usize, device: Device, export: bool) -> Needs {
     let nn = (n as u64).saturating_mul(n as u64);
-    let mut host = HOST_PER_ENTRY.saturating_mul(nn);
+    let per = HOST_PER_ENTRY + if export { EXPORT_PER_ENTRY } else { 0 };
+    let mut host = per.saturating_mul(nn);
     let mut dev = 0;
     match device {
         Device::CpuReference => host = host.saturating_add(CPU_REFERENCE_PER_ENTRY * nn),
@@ -68,8 +74,8 @@ pub fn needs(n: usize, device: Device) -> Needs {
 }
 
 /// The largest `n` with `needs(n)` within `host` and `device` bytes.
-pub fn largest_fitting(host: u64, device: Device) -> usize {
-    let per = needs(1, device);
+pub fn largest_fitting(host: u64, device: Device, export: bool) -> usize {
+    let per = needs(1, device, export);
     let mut n = ((host / per.host.max(1)) as f64).sqrt() as usize;
     if let Device::OpenCl { info, .. } = device {
         if per.device > 0 && info.kind != "CPU" {
@@ -96,12 +102,14 @@ fn gb(bytes: u64) -> String {
 /// Checks that a bake of `n` patches fits: the format limit, the host's
 /// `available` bytes (`None`: unknown, not checked) and the device's
 /// global memory. `what` says where `n` comes from ("the requested patch
-/// count", "the voxelization's patches").
+/// count", "the voxelization's patches"); `export`: with the inspection
+/// exports.
 pub fn check(
     n: usize,
     what: &str,
     available: Option<u64>,
     device: Device,
+    export: bool,
 ) -> Result<(), BakeError> {
     if n > MAX_PATCHES_FORMAT {
         return Err(BakeError::TooLarge {
@@ -112,7 +120,7 @@ pub fn check(
             ),
         });
     }
-    let need = needs(n, device);
+    let need = needs(n, device, export);
     if let Some(avail) = available {
         if need.host > avail {
             return Err(BakeError::TooLarge {
@@ -123,7 +131,7 @@ pub fn check(
                      about {} patches fit",
                     gb(need.host),
                     gb(avail),
-                    largest_fitting(avail, device)
+                    largest_fitting(avail, device, export)
                 ),
             });
         }
@@ -138,7 +146,7 @@ pub fn check(
                     gb(need.device),
                     info.name,
                     gb(info.global_mem_bytes),
-                    largest_fitting(available.unwrap_or(u64::MAX), device)
+                    largest_fitting(available.unwrap_or(u64::MAX), device, export)
                 ),
             });
         }

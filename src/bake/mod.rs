@@ -85,6 +85,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
             "the requested patch count",
             budget::host_available(),
             budget_device(&backend, &config.transfer),
+            config.export.is_some(),
         )?;
     }
     // The output's directory is made now, so that a path that cannot be
@@ -378,6 +379,7 @@ pub fn transfer_stages(
         "the voxelization's patch count",
         budget::host_available(),
         budget_device(backend, &config.transfer),
+        config.export.is_some(),
     )?;
 
     progress(&format!(
