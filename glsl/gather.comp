@@ -3,7 +3,7 @@
 // by the host (src/gl/mod.rs).
 //
 // One work-group per row of tiles, one invocation per matrix row i. The
-// dense part is the BC1 texture of log-scaled entries, its stored tiles in
+// dense part is the BC1 (or BC4) texture of log-scaled entries, its stored tiles in
 // an atlas (stored tile s at atlas tile (s % atlas_tiles_x, s / atlas_tiles_x)),
 // read with texelFetch only: a filtered read would blend neighbouring
 // matrix entries. Zero tiles are not stored (the tile index lists the
@@ -14,7 +14,7 @@
 
 layout(local_size_x = TILE) in;
 
-layout(binding = 0) uniform sampler2D atlas;
+layout(binding = 0) uniform sampler2DArray atlas; // BC1: 1 RGB layer; BC4: 1 red layer per channel
 
 layout(std430, binding = 0) readonly buffer RowStart { uint row_start[]; };
 layout(std430, binding = 1) readonly buffer TileCol { uint tile_col[]; };
@@ -29,6 +29,19 @@ uniform uint n;
 uniform uint atlas_tiles_x;
 uniform vec3 scale;
 uniform float log_range;
+uniform uint bc4;    // 0: BC1 (RGB), 1: BC4 (red layers)
+uniform uint layers; // BC4: 1 (grey matrix) or 3
+
+vec3 fetch(ivec2 p) {
+    if (bc4 == 0u) {
+        return texelFetch(atlas, ivec3(p, 0), 0).rgb;
+    }
+    float x = texelFetch(atlas, ivec3(p, 0), 0).r;
+    if (layers == 1u) {
+        return vec3(x);
+    }
+    return vec3(x, texelFetch(atlas, ivec3(p, 1), 0).r, texelFetch(atlas, ivec3(p, 2), 0).r);
+}
 
 void main() {
     uint tr = gl_WorkGroupID.x;
@@ -47,7 +60,7 @@ void main() {
         uint c0 = tc * TILE;
         uint w = min(uint(TILE), n - c0);
         for (uint c = 0u; c < w; c++) {
-            vec3 x = texelFetch(atlas, base + ivec2(int(c), 0), 0).rgb;
+            vec3 x = fetch(base + ivec2(int(c), 0));
             vec3 v = mix(vec3(0.0), scale * exp(log_range * (x - 1.0)), greaterThan(x, vec3(0.0)));
             uint j = c0 + c;
             acc += v * vec3(b0[j], b0[n + j], b0[2u * n + j]);

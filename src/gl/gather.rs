@@ -22,9 +22,10 @@
 //! a factor `e^{L/255}`: the tests bound `|H_gl − H_cpu|` by
 //! `(e^{L/255} − 1) H_cpu` plus f32 rounding.
 //!
-//! This first pass handles the thesis's codec with three channels (BC1 of
-//! log-scaled entries); the other formats are refused with an error
-//! naming them.
+//! BC1 (the thesis's codec, three channels in one RGB texture) and BC4
+//! (one red texture layer per stored channel; a grey matrix's one layer
+//! serves the three channels of `B0`) are read; BC6H, f16 and f32 are
+//! refused with an error naming them (next: BPTC and plain buffers).
 
 use super::{compile_compute, GlError};
 use crate::bakefile::codec::{DenseFormat, Encoded, TILE};
@@ -46,6 +47,10 @@ pub struct GlGather {
     atlas_tiles_x: usize,
     scale: [f32; 3],
     log_range: f32,
+    /// Texture layers (BC4: one per stored channel) and whether the format
+    /// is BC4 (red channels) rather than BC1 (RGB).
+    layers: usize,
+    bc4: bool,
     /// Bytes of the compressed matrix on the GPU (atlas padding excluded).
     pub bytes: u64,
 }
@@ -59,15 +64,20 @@ fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
 impl GlGather {
     /// Uploads `e` (BC1, three channels). The context must be current.
     pub fn new(gl: &glow::Context, e: &Encoded) -> Result<GlGather, GlError> {
-        if e.format != DenseFormat::Bc1 || e.channels != 3 {
-            return Err(GlError::Unsupported(format!(
-                "the GL gather reads BC1 matrices of three channels; this one is {:?} with {} \
-                 channel(s) (codec {})",
-                e.format,
-                e.channels,
-                e.kind.name()
-            )));
-        }
+        // BC1: one RGB layer; BC4: one red layer per stored channel.
+        let (layers, internal, bc4) = match (e.format, e.channels) {
+            (DenseFormat::Bc1, 3) => (1, glow::COMPRESSED_RGB_S3TC_DXT1_EXT, false),
+            (DenseFormat::Bc4, ch) => (ch, glow::COMPRESSED_RED_RGTC1, true),
+            _ => {
+                return Err(GlError::Unsupported(format!(
+                    "the GL gather reads BC1 and BC4 matrices; this one is {:?} with {} \
+                     channel(s) (codec {})",
+                    e.format,
+                    e.channels,
+                    e.kind.name()
+                )))
+            }
+        };
         let tile = e.index.tile;
         assert_eq!(tile, TILE, "the codec's tile edge");
         let stored = e.index.cols.len();
@@ -84,7 +94,8 @@ impl GlGather {
         }
         let (w, h) = (ax * tile, ay * tile);
         let row_blocks = w / 4;
-        let mut atlas = vec![0u8; (w / 4) * (h / 4) * 8];
+        let layer_bytes = (w / 4) * (h / 4) * 8;
+        let mut atlas = vec![0u8; layers * layer_bytes];
         let mut slot = 0usize;
         for tr in 0..e.index.tiles_per_side {
             let th = tile.min(e.image_size - tr * tile);
@@ -93,11 +104,15 @@ impl GlGather {
                 let (bh, bw) = (th / 4, tw / 4);
                 let src = &e.dense[e.index.offsets[k] as usize..];
                 let (sx, sy) = (slot % ax, slot / ax);
-                for br in 0..bh {
-                    for bc in 0..bw {
-                        let from = 8 * (br * bw + bc);
-                        let to = 8 * ((sy * tile / 4 + br) * row_blocks + sx * tile / 4 + bc);
-                        atlas[to..to + 8].copy_from_slice(&src[from..from + 8]);
+                // A BC4 tile holds its channels as planes of blocks.
+                for layer in 0..layers {
+                    for br in 0..bh {
+                        for bc in 0..bw {
+                            let from = layer * bh * bw * 8 + 8 * (br * bw + bc);
+                            let to = layer * layer_bytes
+                                + 8 * ((sy * tile / 4 + br) * row_blocks + sx * tile / 4 + bc);
+                            atlas[to..to + 8].copy_from_slice(&src[from..from + 8]);
+                        }
                     }
                 }
                 slot += 1;
@@ -108,30 +123,24 @@ impl GlGather {
         // sizes matching the data.
         unsafe {
             let texture = gl.create_texture().map_err(GlError::Call)?;
-            gl.bind_texture(glow::TEXTURE_2D, Some(texture));
-            gl.compressed_tex_image_2d(
-                glow::TEXTURE_2D,
+            gl.bind_texture(glow::TEXTURE_2D_ARRAY, Some(texture));
+            gl.compressed_tex_image_3d(
+                glow::TEXTURE_2D_ARRAY,
                 0,
-                glow::COMPRESSED_RGB_S3TC_DXT1_EXT as i32,
+                internal as i32,
                 w as i32,
                 h as i32,
+                layers as i32,
                 0,
                 atlas.len() as i32,
                 &atlas,
             );
             // texelFetch ignores filtering; NEAREST and one level make the
             // texture complete.
-            gl.tex_parameter_i32(
-                glow::TEXTURE_2D,
-                glow::TEXTURE_MIN_FILTER,
-                glow::NEAREST as i32,
-            );
-            gl.tex_parameter_i32(
-                glow::TEXTURE_2D,
-                glow::TEXTURE_MAG_FILTER,
-                glow::NEAREST as i32,
-            );
-            gl.tex_parameter_i32(glow::TEXTURE_2D, glow::TEXTURE_MAX_LEVEL, 0);
+            let t = glow::TEXTURE_2D_ARRAY;
+            gl.tex_parameter_i32(t, glow::TEXTURE_MIN_FILTER, glow::NEAREST as i32);
+            gl.tex_parameter_i32(t, glow::TEXTURE_MAG_FILTER, glow::NEAREST as i32);
+            gl.tex_parameter_i32(t, glow::TEXTURE_MAX_LEVEL, 0);
             let mut buffers = Vec::with_capacity(8);
             for _ in 0..8 {
                 buffers.push(gl.create_buffer().map_err(GlError::Call)?);
@@ -154,7 +163,13 @@ impl GlGather {
             };
             upload(buffers[4], bytes_of(&row_ptr));
             upload(buffers[5], bytes_of(&sp.cols));
-            upload(buffers[6], bytes_of(&sp.values));
+            // Three values per position (a grey matrix's one repeated).
+            let values: Vec<f32> = if e.channels == 3 {
+                sp.values.clone()
+            } else {
+                sp.values.iter().flat_map(|&v| [v; 3]).collect()
+            };
+            upload(buffers[6], bytes_of(&values));
             if let Some(code) = Some(gl.get_error()).filter(|&c| c != glow::NO_ERROR) {
                 return Err(GlError::Call(format!(
                     "uploading the matrix: GL error 0x{code:x}"
@@ -167,8 +182,14 @@ impl GlGather {
                 n: e.n,
                 tiles_per_side: e.index.tiles_per_side,
                 atlas_tiles_x: ax,
-                scale: e.scale,
+                scale: if e.channels == 3 {
+                    e.scale
+                } else {
+                    [e.scale[0]; 3]
+                },
                 log_range: e.log_range,
+                layers,
+                bc4,
                 bytes: (e.dense.len()
                     + 4 * (row_ptr.len() + cols.len() + sp.cols.len() + sp.values.len()))
                     as u64,
@@ -218,7 +239,7 @@ impl GlGather {
                 gl.bind_buffer_base(glow::SHADER_STORAGE_BUFFER, k as u32, Some(*b));
             }
             gl.active_texture(glow::TEXTURE0);
-            gl.bind_texture(glow::TEXTURE_2D, Some(self.atlas));
+            gl.bind_texture(glow::TEXTURE_2D_ARRAY, Some(self.atlas));
             let loc = |name: &str| gl.get_uniform_location(self.program, name);
             gl.uniform_1_i32(loc("atlas").as_ref(), 0);
             gl.uniform_1_u32(loc("n").as_ref(), n as u32);
@@ -230,6 +251,8 @@ impl GlGather {
                 self.scale[2],
             );
             gl.uniform_1_f32(loc("log_range").as_ref(), self.log_range);
+            gl.uniform_1_u32(loc("bc4").as_ref(), u32::from(self.bc4));
+            gl.uniform_1_u32(loc("layers").as_ref(), self.layers as u32);
             gl.dispatch_compute(self.tiles_per_side as u32, 1, 1);
             gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT | glow::BUFFER_UPDATE_BARRIER_BIT);
             gl.bind_buffer(glow::SHADER_STORAGE_BUFFER, Some(self.buffers[7]));
