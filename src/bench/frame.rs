@@ -216,9 +216,9 @@ pub fn run(
     let threads = rayon::current_num_threads();
     writeln!(
         out,
-        "memory bandwidth (STREAM-like triad, {threads} threads): {:.2} GB/s; AVX-512 {}\n",
+        "memory bandwidth (STREAM-like triad, {threads} threads): {:.2} GB/s; vectorised BC1 gather: {}\n",
         bandwidth / 1e9,
-        if simd_available() { "yes" } else { "no" }
+        crate::runtime::gather::simd_kind()
     )?;
 
     let albedo_tex = Albedo::new(&scene);
@@ -322,6 +322,11 @@ pub fn run(
         out,
         "| unchanged frame | {:.4} ms | nothing recomputed |",
         1e3 * t_unchanged
+    )?;
+    writeln!(
+        out,
+        "{}",
+        gl_gather_row(&rt, refs, &all, &h_rt, options.repeat)
     )?;
     if let Some((sb0, lit_patches, cone)) = spot_b0 {
         let sr = [&sb0[0][..], &sb0[1][..], &sb0[2][..]];
@@ -427,4 +432,49 @@ pub fn run(
         t / t_lit
     )?;
     Ok(out)
+}
+
+/// The GL gather (`src/gl/gather.rs`) on a headless context, every column,
+/// as one table row: the round trip (upload `B0`, dispatch, read `H` back)
+/// and its largest relative difference from the CPU gather `h_cpu`; or why
+/// it did not run. On Mesa's llvmpipe this is a CPU figure too.
+fn gl_gather_row(
+    rt: &Runtime,
+    b0: [&[f32]; 3],
+    all: &ActiveColumns,
+    h_cpu: &[Vec<f32>; 3],
+    repeat: usize,
+) -> String {
+    let gl = match crate::gl::context::Headless::new() {
+        Ok(gl) => gl,
+        Err(e) => return format!("| GL gather | — | not run: {e} |"),
+    };
+    let g = match crate::gl::gather::GlGather::new(&gl.gl, &rt.baked.matrix) {
+        Ok(g) => g,
+        Err(e) => return format!("| GL gather | — | not run: {e} |"),
+    };
+    let mut last = None;
+    let (_, t) = best(repeat, || {
+        last = Some(g.gather(&gl.gl, b0, all));
+    });
+    let row = match last {
+        Some(Ok(h)) => {
+            let worst = (0..3)
+                .flat_map(|c| h[c].iter().zip(&h_cpu[c]))
+                .filter(|(_, &y)| y > 0.0)
+                .map(|(&x, &y)| ((x - y) / y).abs() as f64)
+                .fold(0.0, f64::max);
+            format!(
+                "| GL gather, every column, {} ({}) | {:.3} ms | round trip (B0 up, H back); largest relative difference from the CPU gather {:.2} % |",
+                gl.renderer(),
+                gl.device,
+                1e3 * t,
+                100.0 * worst
+            )
+        }
+        Some(Err(e)) => format!("| GL gather | — | failed: {e} |"),
+        None => "| GL gather | — | not run |".to_string(),
+    };
+    g.delete(&gl.gl);
+    row
 }

@@ -1,8 +1,8 @@
 //! The gather `H = T̃ · B0` straight from the compressed matrix (DESIGN.md
 //! run time step 3), on the CPU: decode fused with the multiply-add, no
 //! decoded matrix in memory, multithreaded over rows of tiles, vectorised
-//! (AVX-512 where the CPU has it, a portable path otherwise, which is also
-//! its reference in the tests).
+//! (AVX-512 where the CPU has it, else AVX2 with FMA, else a portable path,
+//! which is also their reference in the tests).
 //!
 //! **What is skipped.** Tiles that are zero in every channel are not stored
 //! (the codec). Columns of `B0` that are zero in every channel, in groups
@@ -471,7 +471,16 @@ impl CompressedGather {
                     }
                 }
                 #[cfg(target_arch = "x86_64")]
-                if fast {
+                if fast && simd_kind() == "avx2" {
+                    // SAFETY: `simd_kind` checked AVX2 and FMA.
+                    unsafe {
+                        let tables = self.bc1.as_ref().expect("BC1 tables");
+                        bc1_row_avx2(
+                            (&self.dense[..], &fast_cols[..], b0, self.n, tables),
+                            &mut acc,
+                        );
+                    }
+                } else if fast {
                     // SAFETY: `simd` is set only when the CPU reports AVX-512F.
                     unsafe {
                         let tables = self.bc1.as_ref().expect("BC1 tables");
@@ -645,15 +654,28 @@ impl CompressedGather {
     }
 }
 
-/// Whether this CPU runs the AVX-512 path.
+/// Whether this CPU runs a vectorised BC1 path (AVX-512, or AVX2 with
+/// FMA).
 pub fn simd_available() -> bool {
+    simd_kind() != "none"
+}
+
+/// The vectorised BC1 path this CPU runs: "avx512", "avx2" or "none".
+pub fn simd_kind() -> &'static str {
     #[cfg(target_arch = "x86_64")]
     {
-        std::arch::is_x86_feature_detected!("avx512f")
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            return "avx512";
+        }
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            return "avx2";
+        }
+        "none"
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        false
+        "none"
     }
 }
 
@@ -741,6 +763,88 @@ unsafe fn bc1_row_avx512<const BH: usize>(
         for (c, v) in row.iter().enumerate() {
             _mm512_storeu_ps(acc[k][c].as_mut_ptr(), *v);
         }
+    }
+}
+
+/// A BC1 row of tiles on AVX2 + FMA: the [`bc1_row_avx512`] arithmetic in
+/// 8-lane vectors, a block's 16 entries as two halves (its rows 0–1 and
+/// 2–3). With 16 vector registers the accumulators of a whole row of tiles
+/// do not fit, so the block rows go outermost: one block row's 6
+/// accumulators stay in registers while the active block columns pass,
+/// reading each column's 8 bytes for that row (the row of tiles' columns
+/// stay in L2 between block rows). Per accumulator lane the columns are
+/// added in the same order as on AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn bc1_row_avx2((dense, cols, b0, n, tables): RowArgs, acc: &mut [[[f32; 16]; 3]]) {
+    use std::arch::x86_64::*;
+    let shifts_lo = _mm256_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14);
+    let shifts_hi = _mm256_setr_epi32(16, 18, 20, 22, 24, 26, 28, 30);
+    let three = _mm256_set1_epi32(3);
+    let (v0, v1, v2) = (&tables[0].values, &tables[1].values, &tables[2].values);
+    // No closures below: intrinsics inside a closure may not be inlined
+    // into this AVX2 function.
+    for (k, a) in acc.iter_mut().enumerate() {
+        let (mut lr, mut lg, mut lb) = (
+            _mm256_loadu_ps(a[0].as_ptr()),
+            _mm256_loadu_ps(a[1].as_ptr()),
+            _mm256_loadu_ps(a[2].as_ptr()),
+        );
+        let (mut hr, mut hg, mut hb) = (
+            _mm256_loadu_ps(a[0].as_ptr().add(8)),
+            _mm256_loadu_ps(a[1].as_ptr().add(8)),
+            _mm256_loadu_ps(a[2].as_ptr().add(8)),
+        );
+        for &(off, c0) in cols {
+            let c0 = c0 as usize;
+            let (br, bg, bb) = if c0 + 4 <= n {
+                (
+                    _mm256_broadcast_ps(&*(b0[0].as_ptr().add(c0) as *const __m128)),
+                    _mm256_broadcast_ps(&*(b0[1].as_ptr().add(c0) as *const __m128)),
+                    _mm256_broadcast_ps(&*(b0[2].as_ptr().add(c0) as *const __m128)),
+                )
+            } else {
+                let mut q = [[0.0f32; 4]; 3];
+                for (c, qc) in q.iter_mut().enumerate() {
+                    for (i, x) in qc.iter_mut().enumerate() {
+                        if c0 + i < n {
+                            *x = *b0[c].get_unchecked(c0 + i);
+                        }
+                    }
+                }
+                (
+                    _mm256_broadcast_ps(&*(q[0].as_ptr() as *const __m128)),
+                    _mm256_broadcast_ps(&*(q[1].as_ptr() as *const __m128)),
+                    _mm256_broadcast_ps(&*(q[2].as_ptr() as *const __m128)),
+                )
+            };
+            let blk = dense.as_ptr().add(off as usize + 8 * k);
+            let word = (blk as *const u64).read_unaligned();
+            let c0w = (word & 0xffff) as u32;
+            let c1w = ((word >> 16) & 0xffff) as u32;
+            let idx = _mm256_set1_epi32((word >> 32) as u32 as i32);
+            let mode = usize::from(c0w > c1w);
+            let kr = (mode << 10) + ((((c0w >> 11) << 5) | (c1w >> 11)) as usize);
+            let kg = (mode << 12) + (((((c0w >> 5) & 63) << 6) | ((c1w >> 5) & 63)) as usize);
+            let kb = (mode << 10) + ((((c0w & 31) << 5) | (c1w & 31)) as usize);
+            let ilo = _mm256_and_si256(_mm256_srlv_epi32(idx, shifts_lo), three);
+            let ihi = _mm256_and_si256(_mm256_srlv_epi32(idx, shifts_hi), three);
+            let pr = _mm256_broadcast_ps(&*(v0.get_unchecked(kr).as_ptr() as *const __m128));
+            let pg = _mm256_broadcast_ps(&*(v1.get_unchecked(kg).as_ptr() as *const __m128));
+            let pb = _mm256_broadcast_ps(&*(v2.get_unchecked(kb).as_ptr() as *const __m128));
+            lr = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(pr, ilo), br, lr);
+            hr = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(pr, ihi), br, hr);
+            lg = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(pg, ilo), bg, lg);
+            hg = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(pg, ihi), bg, hg);
+            lb = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(pb, ilo), bb, lb);
+            hb = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(pb, ihi), bb, hb);
+        }
+        _mm256_storeu_ps(a[0].as_mut_ptr(), lr);
+        _mm256_storeu_ps(a[0].as_mut_ptr().add(8), hr);
+        _mm256_storeu_ps(a[1].as_mut_ptr(), lg);
+        _mm256_storeu_ps(a[1].as_mut_ptr().add(8), hg);
+        _mm256_storeu_ps(a[2].as_mut_ptr(), lb);
+        _mm256_storeu_ps(a[2].as_mut_ptr().add(8), hb);
     }
 }
 
