@@ -7,6 +7,18 @@ use super::{DenseFormat, Encoded};
 use half::f16;
 use rayon::prelude::*;
 
+/// What the gathers accumulate in: f32 (as the run time) or f64 (error
+/// measures).
+trait Accumulator:
+    Copy + Default + Send + Sync + std::ops::AddAssign + std::ops::Mul<Output = Self> + From<f32>
+{
+}
+
+impl<A> Accumulator for A where
+    A: Copy + Default + Send + Sync + std::ops::AddAssign + std::ops::Mul<Output = A> + From<f32>
+{
+}
+
 impl Encoded {
     /// The matrix as the run time sees it (see [`decode`]).
     pub fn decode(&self) -> [Vec<f32>; 3] {
@@ -39,16 +51,7 @@ impl Encoded {
     }
 
     /// The gather with accumulators of type `A`.
-    fn gather_in<A>(&self, b0: [&[f32]; 3]) -> [Vec<A>; 3]
-    where
-        A: Copy
-            + Default
-            + Send
-            + Sync
-            + std::ops::AddAssign
-            + std::ops::Mul<Output = A>
-            + From<f32>,
-    {
+    fn gather_in<A: Accumulator>(&self, b0: [&[f32]; 3]) -> [Vec<A>; 3] {
         self.gather_many_in::<A>(&[b0])
             .pop()
             .expect("one result per B0")
@@ -58,16 +61,7 @@ impl Encoded {
     /// per row of tiles, the stored tiles decoded once and multiplied by
     /// each `B0` (accumulated in column order), then the sparse entries of
     /// each row.
-    fn gather_many_in<A>(&self, b0s: &[[&[f32]; 3]]) -> Vec<[Vec<A>; 3]>
-    where
-        A: Copy
-            + Default
-            + Send
-            + Sync
-            + std::ops::AddAssign
-            + std::ops::Mul<Output = A>
-            + From<f32>,
-    {
+    fn gather_many_in<A: Accumulator>(&self, b0s: &[[&[f32]; 3]]) -> Vec<[Vec<A>; 3]> {
         let n = self.n;
         for b0 in b0s {
             for b in b0 {
