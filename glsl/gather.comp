@@ -24,16 +24,21 @@ layout(std430, binding = 4) readonly buffer SparseRow { uint sparse_row[]; };
 layout(std430, binding = 5) readonly buffer SparseCol { uint sparse_col[]; };
 layout(std430, binding = 6) readonly buffer SparseVal { float sparse_val[]; }; // 3 per position
 layout(std430, binding = 7) writeonly buffer H { float h[]; };         // 3 n, channel-major
+layout(std430, binding = 8) readonly buffer Dense { uint dense[]; };   // f16, f32: the stored tiles' bytes
+layout(std430, binding = 9) readonly buffer Offset { uint tile_offset[]; }; // byte offset of each stored tile
 
 uniform uint n;
 uniform uint atlas_tiles_x;
 uniform vec3 scale;
 uniform float log_range;
-uniform uint bc4;    // 0: BC1 (RGB), 1: BC4 (red layers)
-uniform uint layers; // BC4: 1 (grey matrix) or 3
+uniform uint format;     // 0 BC1, 1 BC4 (log-scaled), 2 BC6H, 3 f16, 4 f32
+uniform uint layers;     // BC4: 1 (grey matrix) or 3
+uniform uint channels;   // stored channels (1: grey)
+uniform uint image_size; // side of the dense image
 
+// BC1 and BC4: the decoded log bytes in [0, 1] of the three channels.
 vec3 fetch(ivec2 p) {
-    if (bc4 == 0u) {
+    if (format == 0u) {
         return texelFetch(atlas, ivec3(p, 0), 0).rgb;
     }
     float x = texelFetch(atlas, ivec3(p, 0), 0).r;
@@ -41,6 +46,25 @@ vec3 fetch(ivec2 p) {
         return vec3(x);
     }
     return vec3(x, texelFetch(atlas, ivec3(p, 1), 0).r, texelFetch(atlas, ivec3(p, 2), 0).r);
+}
+
+// f16 and f32: entry (r, c) of stored tile s (tw texels wide), texel-major
+// with `channels` values per texel; f16 values are times `scale`'s inverse
+// (the power of two they were stored multiplied by).
+vec3 plain(uint s, uint r, uint c, uint tw) {
+    uint t = (r * tw + c) * channels;
+    vec3 v;
+    for (uint k = 0u; k < 3u; k++) {
+        uint q = t + min(k, channels - 1u);
+        if (format == 4u) {
+            v[k] = uintBitsToFloat(dense[tile_offset[s] / 4u + q]);
+        } else {
+            uint g = tile_offset[s] / 2u + q;
+            vec2 pair = unpackHalf2x16(dense[g / 2u]);
+            v[k] = ((g & 1u) == 0u ? pair.x : pair.y) / scale[k];
+        }
+    }
+    return v;
 }
 
 void main() {
@@ -59,9 +83,17 @@ void main() {
         ivec2 base = ivec2(int((s % atlas_tiles_x) * TILE), int((s / atlas_tiles_x) * TILE + r));
         uint c0 = tc * TILE;
         uint w = min(uint(TILE), n - c0);
+        uint tw = min(uint(TILE), image_size - c0);
         for (uint c = 0u; c < w; c++) {
-            vec3 x = fetch(base + ivec2(int(c), 0));
-            vec3 v = mix(vec3(0.0), scale * exp(log_range * (x - 1.0)), greaterThan(x, vec3(0.0)));
+            vec3 v;
+            if (format <= 1u) {
+                vec3 x = fetch(base + ivec2(int(c), 0));
+                v = mix(vec3(0.0), scale * exp(log_range * (x - 1.0)), greaterThan(x, vec3(0.0)));
+            } else if (format == 2u) {
+                v = texelFetch(atlas, ivec3(base + ivec2(int(c), 0), 0), 0).rgb / scale;
+            } else {
+                v = plain(s, r, c, tw);
+            }
             uint j = c0 + c;
             acc += v * vec3(b0[j], b0[n + j], b0[2u * n + j]);
         }

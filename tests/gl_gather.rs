@@ -31,11 +31,17 @@ fn gl_gather_matches_the_cpu_gather_within_the_decoders_rounding() {
         log_range: LOG_RANGE_AUTO,
         sparse: SparseValues::Rgb9e5,
     };
-    // BC1 (colour), BC4 of one channel (a grey scene), BC4 of three.
+    // Every format the file can hold: BC1 (colour), BC4 of one channel (a
+    // grey scene) and of three, BC6H, f16 and f32 (colour and grey).
     for (albedo, kind, format, channels) in [
         (&colour, CodecKind::default(), DenseFormat::Bc1, 3),
         (&grey, CodecKind::default(), DenseFormat::Bc4, 1),
         (&colour, bc4, DenseFormat::Bc4, 3),
+        (&colour, CodecKind::Bc6h, DenseFormat::Bc6h, 3),
+        (&colour, CodecKind::F16, DenseFormat::F16, 3),
+        (&grey, CodecKind::F16, DenseFormat::F16, 1),
+        (&colour, CodecKind::F32, DenseFormat::F32, 3),
+        (&grey, CodecKind::F32, DenseFormat::F32, 1),
     ] {
         check(&gl, &rooms.f, n, albedo, kind, format, channels);
     }
@@ -77,8 +83,14 @@ fn check(
     // terms in either order (1e-5 relative). k = 1 for BC1 (llvmpipe
     // truncates the interpolated palette entries to bytes, TOOLCHAIN.md);
     // k = 2 for BC4, whose 8-level interpolation llvmpipe decodes through
-    // bytes too (measured up to 1.2 steps below bcdec's float decode).
-    let k = if format == DenseFormat::Bc4 { 2.0 } else { 1.0 };
+    // bytes too (measured up to 1.2 steps below bcdec's float decode);
+    // k = 0 for BC6H (decoded bit-exactly, TOOLCHAIN.md), f16 and f32 (the
+    // stored values themselves).
+    let k = match format {
+        DenseFormat::Bc4 => 2.0,
+        DenseFormat::Bc1 => 1.0,
+        _ => 0.0,
+    };
     let step = (k * e.log_range as f64 / 255.0).exp() - 1.0;
     let mut rng = synthetic::Rng::new(9);
     for case in 0..3 {
@@ -122,7 +134,7 @@ fn check(
         let h_all = g.gather(&gl.gl, b, &all).unwrap();
         assert_eq!(h_all, h_gl, "case {case}: skipping changed H");
         println!(
-            "{kind}, case {case}: {} of {} tile columns active; worst |GL - CPU| / bound = {worst:.3} ({k} byte step(s) = {:.2} %)",
+            "{kind}, case {case}: {} of {} tile columns active; worst |GL - CPU| / bound = {worst:.2e} ({k} byte step(s) = {:.2} %)",
             active.tile.iter().filter(|&&a| a).count(),
             active.tile.len(),
             100.0 * step

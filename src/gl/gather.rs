@@ -22,10 +22,12 @@
 //! a factor `e^{L/255}`: the tests bound `|H_gl − H_cpu|` by
 //! `(e^{L/255} − 1) H_cpu` plus f32 rounding.
 //!
-//! BC1 (the thesis's codec, three channels in one RGB texture) and BC4
-//! (one red texture layer per stored channel; a grey matrix's one layer
-//! serves the three channels of `B0`) are read; BC6H, f16 and f32 are
-//! refused with an error naming them (next: BPTC and plain buffers).
+//! Every codec variant of the file: BC1 (the thesis's codec, three
+//! channels in one RGB texture), BC4 (one red texture layer per stored
+//! channel; a grey matrix's one layer serves the three channels of `B0`),
+//! BC6H (a BPTC half-float texture, values times the stored power of two's
+//! inverse) and the plain f16 and f32 tiles (read from a storage buffer as
+//! stored).
 
 use super::{compile_compute, GlError};
 use crate::bakefile::codec::{DenseFormat, Encoded, TILE};
@@ -39,18 +41,22 @@ pub const SOURCE: &str = include_str!("../../glsl/gather.comp");
 pub struct GlGather {
     program: glow::Program,
     atlas: glow::Texture,
-    /// Storage buffers at bindings 0..=7 (row starts, tile columns, B0,
-    /// active tile columns, sparse rows, sparse columns, sparse values, H).
-    buffers: [glow::Buffer; 8],
+    /// Storage buffers at bindings 0..=9 (row starts, tile columns, B0,
+    /// active tile columns, sparse rows, sparse columns, sparse values, H,
+    /// the plain formats' dense bytes, stored tiles' byte offsets).
+    buffers: [glow::Buffer; 10],
     n: usize,
     tiles_per_side: usize,
     atlas_tiles_x: usize,
     scale: [f32; 3],
     log_range: f32,
-    /// Texture layers (BC4: one per stored channel) and whether the format
-    /// is BC4 (red channels) rather than BC1 (RGB).
+    /// Texture layers (BC4: one per stored channel), the format as the
+    /// shader numbers it (0 BC1, 1 BC4, 2 BC6H, 3 f16, 4 f32), stored
+    /// channels and the dense image's side.
     layers: usize,
-    bc4: bool,
+    format: u32,
+    channels: usize,
+    image_size: usize,
     /// Bytes of the compressed matrix on the GPU (atlas padding excluded).
     pub bytes: u64,
 }
@@ -62,25 +68,28 @@ fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
 }
 
 impl GlGather {
-    /// Uploads `e` (BC1, three channels). The context must be current.
+    /// Uploads `e`. The context must be current.
     pub fn new(gl: &glow::Context, e: &Encoded) -> Result<GlGather, GlError> {
-        // BC1: one RGB layer; BC4: one red layer per stored channel.
-        let (layers, internal, bc4) = match (e.format, e.channels) {
-            (DenseFormat::Bc1, 3) => (1, glow::COMPRESSED_RGB_S3TC_DXT1_EXT, false),
-            (DenseFormat::Bc4, ch) => (ch, glow::COMPRESSED_RED_RGTC1, true),
-            _ => {
-                return Err(GlError::Unsupported(format!(
-                    "the GL gather reads BC1 and BC4 matrices; this one is {:?} with {} \
-                     channel(s) (codec {})",
-                    e.format,
-                    e.channels,
-                    e.kind.name()
-                )))
-            }
+        // The texture of the block formats: BC1 one RGB layer, BC4 one red
+        // layer per stored channel, BC6H one RGB half-float layer; the plain
+        // formats are read from a storage buffer (a 1-tile dummy texture).
+        let (layers, internal, block_bytes) = match e.format {
+            DenseFormat::Bc1 => (1, glow::COMPRESSED_RGB_S3TC_DXT1_EXT, 8),
+            DenseFormat::Bc4 => (e.channels, glow::COMPRESSED_RED_RGTC1, 8),
+            DenseFormat::Bc6h => (1, glow::COMPRESSED_RGB_BPTC_UNSIGNED_FLOAT, 16),
+            DenseFormat::F16 | DenseFormat::F32 => (1, glow::COMPRESSED_RGB_S3TC_DXT1_EXT, 8),
         };
+        let plain = matches!(e.format, DenseFormat::F16 | DenseFormat::F32);
+        if e.format == DenseFormat::Bc1 && e.channels != 3 {
+            return Err(GlError::Unsupported(format!(
+                "a BC1 matrix of {} channel(s) (codec {})",
+                e.channels,
+                e.kind.name()
+            )));
+        }
         let tile = e.index.tile;
         assert_eq!(tile, TILE, "the codec's tile edge");
-        let stored = e.index.cols.len();
+        let stored = if plain { 1 } else { e.index.cols.len() };
         // SAFETY: queries and object creation on the current context.
         let max_texture = unsafe { gl.get_parameter_i32(glow::MAX_TEXTURE_SIZE) }.max(0) as usize;
         let per_side = max_texture / tile;
@@ -94,10 +103,10 @@ impl GlGather {
         }
         let (w, h) = (ax * tile, ay * tile);
         let row_blocks = w / 4;
-        let layer_bytes = (w / 4) * (h / 4) * 8;
+        let layer_bytes = (w / 4) * (h / 4) * block_bytes;
         let mut atlas = vec![0u8; layers * layer_bytes];
         let mut slot = 0usize;
-        for tr in 0..e.index.tiles_per_side {
+        for tr in 0..if plain { 0 } else { e.index.tiles_per_side } {
             let th = tile.min(e.image_size - tr * tile);
             for k in e.index.row_start[tr] as usize..e.index.row_start[tr + 1] as usize {
                 let tw = tile.min(e.image_size - e.index.cols[k] as usize * tile);
@@ -108,10 +117,11 @@ impl GlGather {
                 for layer in 0..layers {
                     for br in 0..bh {
                         for bc in 0..bw {
-                            let from = layer * bh * bw * 8 + 8 * (br * bw + bc);
+                            let bb = block_bytes;
+                            let from = layer * bh * bw * bb + bb * (br * bw + bc);
                             let to = layer * layer_bytes
-                                + 8 * ((sy * tile / 4 + br) * row_blocks + sx * tile / 4 + bc);
-                            atlas[to..to + 8].copy_from_slice(&src[from..from + 8]);
+                                + bb * ((sy * tile / 4 + br) * row_blocks + sx * tile / 4 + bc);
+                            atlas[to..to + bb].copy_from_slice(&src[from..from + bb]);
                         }
                     }
                 }
@@ -141,11 +151,11 @@ impl GlGather {
             gl.tex_parameter_i32(t, glow::TEXTURE_MIN_FILTER, glow::NEAREST as i32);
             gl.tex_parameter_i32(t, glow::TEXTURE_MAG_FILTER, glow::NEAREST as i32);
             gl.tex_parameter_i32(t, glow::TEXTURE_MAX_LEVEL, 0);
-            let mut buffers = Vec::with_capacity(8);
-            for _ in 0..8 {
+            let mut buffers = Vec::with_capacity(10);
+            for _ in 0..10 {
                 buffers.push(gl.create_buffer().map_err(GlError::Call)?);
             }
-            let buffers: [glow::Buffer; 8] = buffers.try_into().expect("eight buffers");
+            let buffers: [glow::Buffer; 10] = buffers.try_into().expect("ten buffers");
             let upload = |b: glow::Buffer, data: &[u8]| {
                 gl.bind_buffer(glow::SHADER_STORAGE_BUFFER, Some(b));
                 // At least 4 bytes: an empty buffer cannot be bound.
@@ -170,6 +180,16 @@ impl GlGather {
                 sp.values.iter().flat_map(|&v| [v; 3]).collect()
             };
             upload(buffers[6], bytes_of(&values));
+            // The plain formats' tiles as they are stored, and each stored
+            // tile's byte offset (little-endian words, as on every GPU).
+            if plain {
+                let mut words = e.dense.clone();
+                words.resize(e.dense.len().div_ceil(4) * 4, 0);
+                upload(buffers[8], &words);
+            } else {
+                upload(buffers[8], &[]);
+            }
+            upload(buffers[9], bytes_of(&e.index.offsets));
             if let Some(code) = Some(gl.get_error()).filter(|&c| c != glow::NO_ERROR) {
                 return Err(GlError::Call(format!(
                     "uploading the matrix: GL error 0x{code:x}"
@@ -182,14 +202,18 @@ impl GlGather {
                 n: e.n,
                 tiles_per_side: e.index.tiles_per_side,
                 atlas_tiles_x: ax,
-                scale: if e.channels == 3 {
-                    e.scale
-                } else {
-                    [e.scale[0]; 3]
-                },
+                scale: std::array::from_fn(|c| e.scale[c.min(e.channels - 1)]),
                 log_range: e.log_range,
                 layers,
-                bc4,
+                format: match e.format {
+                    DenseFormat::Bc1 => 0,
+                    DenseFormat::Bc4 => 1,
+                    DenseFormat::Bc6h => 2,
+                    DenseFormat::F16 => 3,
+                    DenseFormat::F32 => 4,
+                },
+                channels: e.channels,
+                image_size: e.image_size,
                 bytes: (e.dense.len()
                     + 4 * (row_ptr.len() + cols.len() + sp.cols.len() + sp.values.len()))
                     as u64,
@@ -251,8 +275,10 @@ impl GlGather {
                 self.scale[2],
             );
             gl.uniform_1_f32(loc("log_range").as_ref(), self.log_range);
-            gl.uniform_1_u32(loc("bc4").as_ref(), u32::from(self.bc4));
+            gl.uniform_1_u32(loc("format").as_ref(), self.format);
             gl.uniform_1_u32(loc("layers").as_ref(), self.layers as u32);
+            gl.uniform_1_u32(loc("channels").as_ref(), self.channels as u32);
+            gl.uniform_1_u32(loc("image_size").as_ref(), self.image_size as u32);
             gl.dispatch_compute(self.tiles_per_side as u32, 1, 1);
             gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT | glow::BUFFER_UPDATE_BARRIER_BIT);
             gl.bind_buffer(glow::SHADER_STORAGE_BUFFER, Some(self.buffers[7]));
