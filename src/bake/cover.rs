@@ -92,17 +92,20 @@ impl<'a> Cover<'a> {
                 let hit = bvh.order[k as usize];
                 hit == tri
                     || (dot(normals[hit as usize], n) < 0.0 && t * cover > gap)
-                    || (dot(normals[hit as usize], n) > 0.0 && self.front_at(o, n, t * cover, tri))
+                    || (dot(normals[hit as usize], n) > 0.0
+                        && self.front_at(o, n, t * cover, tri).is_some())
             })
             .is_some();
         near || self.enclosed(o, n, tri)
     }
 
-    /// Whether a surface facing back along the unit direction `d` from `o`
-    /// (shifted) crosses it within `lift` of the distance `t`: the other
-    /// side of a two-sided surface modelled as two coincident triangles,
-    /// which makes the back face found there no back at all.
-    fn front_at(&self, o: [f64; 3], d: [f64; 3], t: f64, tri: u32) -> bool {
+    /// A surface facing back along the unit direction `d` from `o`
+    /// (shifted) that crosses it within `lift` of the distance `t` (its BVH
+    /// leaf index; `tri` is ignored): the other side of a two-sided surface
+    /// modelled as two coincident triangles, which makes the back face found
+    /// there no back at all. The rays form factors credit such a hit to the
+    /// front face.
+    pub fn front_at(&self, o: [f64; 3], d: [f64; 3], t: f64, tri: u32) -> Option<u32> {
         let (bvh, normals) = (self.bvh, self.normals);
         let e = self.lift;
         let start: [f64; 3] = std::array::from_fn(|q| o[q] + (t - e) * d[q]);
@@ -110,30 +113,36 @@ impl<'a> Cover<'a> {
             let hit = bvh.order[k as usize];
             hit == tri || dot(normals[hit as usize], d) >= 0.0
         })
-        .is_some()
     }
 
     /// Every direction of a fixed fan around the normal meets the back of a
     /// surface first: the point (`o`, shifted) is inside a closed solid (the
     /// floor under a box without a bottom face), at any distance.
     fn enclosed(&self, o: [f64; 3], n: [f64; 3], tri: u32) -> bool {
-        let (t, b) = tangent_basis(n);
-        let (st, ct) = ENCLOSED_POLAR.sin_cos();
         (0..ENCLOSED_RAYS).all(|k| {
-            let d: [f64; 3] = if k == 0 {
-                n
-            } else {
-                let phi = std::f64::consts::TAU * (k - 1) as f64 / (ENCLOSED_RAYS - 1) as f64;
-                std::array::from_fn(|q| st * (phi.cos() * t[q] + phi.sin() * b[q]) + ct * n[q])
-            };
+            let d = fan_direction(n, k, ENCLOSED_RAYS);
             self.bvh
                 .closest_hit(o, d.map(|v| v * self.reach))
                 .is_some_and(|(leaf, t)| {
                     let hit = self.bvh.order[leaf as usize];
                     hit != tri
                         && dot(self.normals[hit as usize], d) > 0.0
-                        && !self.front_at(o, d, t * self.reach, tri)
+                        && self.front_at(o, d, t * self.reach, tri).is_none()
                 })
         })
     }
+}
+
+/// Direction `k` of the enclosure test's fan of `rays` around the unit
+/// vector `n`: `n` itself for `k = 0`, else evenly spaced in azimuth at
+/// [`ENCLOSED_POLAR`] from `n` (also the facing check's back-side probe,
+/// `bake::facing`).
+pub fn fan_direction(n: [f64; 3], k: usize, rays: usize) -> [f64; 3] {
+    if k == 0 {
+        return n;
+    }
+    let (t, b) = tangent_basis(n);
+    let (st, ct) = ENCLOSED_POLAR.sin_cos();
+    let phi = std::f64::consts::TAU * (k - 1) as f64 / (rays - 1) as f64;
+    std::array::from_fn(|q| st * (phi.cos() * t[q] + phi.sin() * b[q]) + ct * n[q])
 }

@@ -14,11 +14,12 @@
 //! closed model face away from it by construction, so only `n = 0` stops
 //! the bake.
 
+use crate::bake::cover::{fan_direction, COVER_LIFT, ENCLOSED_RAYS};
 use crate::bake::error::BakeError;
 use crate::bake::form_factor::FormFactors;
 use crate::bake::voxelize::Voxelization;
 use crate::core::bvh::Bvh;
-use crate::core::math::{dot, tangent_basis};
+use crate::core::math::dot;
 use crate::core::scene::Scene;
 use serde::Serialize;
 
@@ -31,8 +32,8 @@ pub const BLIND_LIMIT: f64 = 0.5;
 pub const INVERTED_LIMIT: f64 = 0.5;
 
 /// Rays per patch of the back-side probe: the direction opposite the normal
-/// and a fan of 6 at 60° from it.
-const PROBE_RAYS: usize = 7;
+/// and the enclosure test's fan around it ([`fan_direction`]).
+const PROBE_RAYS: usize = ENCLOSED_RAYS;
 
 /// What the facing check measured.
 #[derive(Clone, Debug, Default, Serialize)]
@@ -112,23 +113,16 @@ fn probe(scene: &Scene, vox: &Voxelization) -> (u64, u64) {
         .sum::<f64>()
         .sqrt()
         .max(1e-30);
-    let lift = 1e-3 * vox.grid.size;
+    let lift = COVER_LIFT * vox.grid.size;
     let reach = 2.0 * diagonal + vox.grid.size;
-    let (st, ct) = std::f64::consts::FRAC_PI_3.sin_cos();
     vox.patches
         .par_iter()
         .map(|p| {
             let b = p.normal.map(|v| -v);
-            let (t, u) = tangent_basis(b);
             let o: [f64; 3] = std::array::from_fn(|q| p.centre[q] + lift * b[q] - shift[q]);
             let mut back = 0u64;
             for k in 0..PROBE_RAYS {
-                let d: [f64; 3] = if k == 0 {
-                    b
-                } else {
-                    let phi = std::f64::consts::TAU * (k - 1) as f64 / (PROBE_RAYS - 1) as f64;
-                    std::array::from_fn(|q| st * (phi.cos() * t[q] + phi.sin() * u[q]) + ct * b[q])
-                };
+                let d = fan_direction(b, k, PROBE_RAYS);
                 if let Some((leaf, _)) = bvh.closest_hit(o, d.map(|v| v * reach)) {
                     let tri = bvh.order[leaf as usize] as usize;
                     if dot(normals[tri], d) > 0.0 {

@@ -41,7 +41,6 @@
 //! exact for planar squares.
 
 use super::{FormFactorOptions, FormFactorStats, FormFactors, ROW_SUM_TOL};
-use crate::bake::cover::COVER_LIFT;
 use crate::bake::error::BakeError;
 use crate::bake::pieces::{self, PieceGeo, PieceLookup};
 use crate::bake::voxelize::{Cover, Voxelization};
@@ -300,13 +299,8 @@ fn emit(
                     // The back of a surface, unless a front face coincides
                     // with it (a two-sided surface modelled as two
                     // triangles, or `Scene::with_back_sides`): then that
-                    // front face is what the ray meets (as the cover rule's
-                    // `front_at`).
-                    let e = COVER_LIFT * vox.grid.size;
-                    let start = add(o, scale(d, tp * far - e));
-                    match bvh.any_hit(start, scale(d, 2.0 * e), |k, _| {
-                        dot(geo_normal(bvh, k), d) >= 0.0
-                    }) {
+                    // front face is what the ray meets (the cover rule's).
+                    match cover.front_at(o, d, tp * far, u32::MAX) {
                         Some(front) => leaf = front,
                         None => {
                             c.back += 1;
