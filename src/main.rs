@@ -243,9 +243,14 @@ struct RenderArgs {
     width: usize,
     #[arg(long, default_value_t = 480)]
     height: usize,
-    /// cpu (the reference renderer); gl comes with the GL renderer.
+    /// cpu (the reference renderer: ray casting), gl (OpenGL 4.5 through
+    /// EGL, headless: shadow maps, the gather in a compute shader), or auto
+    /// (gl when a context can be made, else cpu).
     #[arg(long, default_value = "cpu")]
     backend: String,
+    /// Shadow map side in texels (gl).
+    #[arg(long, default_value_t = 2048)]
+    shadow_resolution: usize,
     /// Also write the view's linear radiance, before exposure, as PFM.
     #[arg(long, value_name = "OUT.pfm")]
     hdr: Option<PathBuf>,
@@ -696,10 +701,14 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
             args.view
         )
     })?;
-    if args.backend != "cpu" {
+    if !matches!(args.backend.as_str(), "cpu" | "gl" | "auto") {
+        bail!("--backend {:?}: expected cpu, gl or auto", args.backend);
+    }
+    if !(16..=radiosity::gl::shadow::MAX_RESOLUTION).contains(&args.shadow_resolution) {
         bail!(
-            "--backend {:?}: this build renders on the CPU only (--backend cpu)",
-            args.backend
+            "--shadow-resolution {}: expected 16..={}",
+            args.shadow_resolution,
+            radiosity::gl::shadow::MAX_RESOLUTION
         );
     }
     if !(1..=16).contains(&args.samples) {
@@ -743,10 +752,88 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
         samples: args.samples,
         ..RuntimeOptions::default()
     };
-    let albedo = Albedo::new(&scene);
+    // GL: a headless context, or (auto) the CPU when none can be made.
+    let context = match args.backend.as_str() {
+        "gl" => Some(radiosity::gl::context::Headless::new().context(
+            "--backend gl needs an OpenGL 4.5 context through EGL (scripts/setup installs Mesa)",
+        )?),
+        "auto" => match radiosity::gl::context::Headless::new() {
+            Ok(c) => Some(c),
+            Err(e) => {
+                eprintln!("no OpenGL context ({e}): rendering on the CPU");
+                None
+            }
+        },
+        _ => None,
+    };
     let mut rt = Runtime::new(baked, scene, options);
-    let fs = rt.frame(&config.lights, &config.emission);
-    let (img, rs) = render(&rt, &config, view, args.width, args.height, &albedo);
+    let (img, summary) = match &context {
+        Some(ctx) => {
+            let gl = &ctx.gl;
+            let mut r = radiosity::gl::renderer::GlRenderer::new(
+                gl,
+                &rt,
+                radiosity::gl::renderer::GlOptions {
+                    shadow_resolution: args.shadow_resolution,
+                    samples: args.samples,
+                    ..Default::default()
+                },
+            )
+            .context("preparing the GL renderer")?;
+            let start = std::time::Instant::now();
+            let fs = r.frame(gl, &config.lights, &config.emission)?;
+            let img = r.render(
+                gl,
+                &config.camera,
+                view,
+                (args.width, args.height),
+                &config.emission,
+            )?;
+            let wall = start.elapsed().as_secs_f64();
+            let times = r.pass_times(gl, true);
+            let passes: Vec<String> = radiosity::gl::renderer::PASSES
+                .iter()
+                .zip(times)
+                .map(|(name, t)| match t {
+                    Some(ms) => format!("{name} {ms:.2} ms"),
+                    None => format!("{name} (no timer)"),
+                })
+                .collect();
+            let s = format!(
+                "gl ({}, {}): {} patches, {} light(s), {} shadow views; GPU {}; frame and image {}x{} in {wall:.3} s with read-back",
+                ctx.device,
+                ctx.renderer(),
+                rt.n(),
+                fs.lights,
+                fs.views,
+                passes.join(", "),
+                args.width,
+                args.height
+            );
+            r.delete(gl);
+            (img, s)
+        }
+        None => {
+            let albedo = Albedo::new(&rt.scene);
+            let fs = rt.frame(&config.lights, &config.emission);
+            let (img, rs) = render(&rt, &config, view, args.width, args.height, &albedo);
+            let s = format!(
+                "cpu: {} patches, direct {:.3} s, gather {:.3} s ({} bytes read, {:.1} % of column groups active); image {}×{} in {:.3} s ({} back-facing pixels, {} through a nearest piece, {} unmapped)",
+                rt.n(),
+                fs.seconds_direct,
+                fs.seconds_gather,
+                fs.gather.bytes_read,
+                100.0 * fs.active_groups as f64 / fs.total_groups.max(1) as f64,
+                img.width,
+                img.height,
+                rs.seconds,
+                rs.back_faces,
+                rs.nearest_piece,
+                rs.unmapped
+            );
+            (img, s)
+        }
+    };
     let (pixels, exposure) = img.to_srgb8(args.exposure);
     let png = image::RgbImage::from_raw(args.width as u32, args.height as u32, pixels)
         .context("image size")?;
@@ -761,20 +848,7 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
         radiosity::runtime::tonemap::write_pfm(hdr, img.width, img.height, &img.radiance)
             .with_context(|| format!("writing {}", hdr.display()))?;
     }
-    eprintln!(
-        "frame: {} patches, direct {:.3} s, gather {:.3} s ({} bytes read, {:.1} % of column groups active); image {}×{} in {:.3} s ({} back-facing pixels, {} through a nearest piece, {} unmapped); exposure {exposure:.4}",
-        rt.n(),
-        fs.seconds_direct,
-        fs.seconds_gather,
-        fs.gather.bytes_read,
-        100.0 * fs.active_groups as f64 / fs.total_groups.max(1) as f64,
-        img.width,
-        img.height,
-        rs.seconds,
-        rs.back_faces,
-        rs.nearest_piece,
-        rs.unmapped
-    );
+    eprintln!("{summary}; exposure {exposure:.4}");
     println!("{}", args.output.display());
     Ok(())
 }

@@ -29,7 +29,7 @@
 //! inverse) and the plain f16 and f32 tiles (read from a storage buffer as
 //! stored).
 
-use super::{compile_compute, GlError};
+use super::{bytes_of, compile_compute, GlError};
 use crate::bakefile::codec::{DenseFormat, Encoded, TILE};
 use crate::runtime::gather::ActiveColumns;
 use glow::HasContext;
@@ -59,12 +59,6 @@ pub struct GlGather {
     image_size: usize,
     /// Bytes of the compressed matrix on the GPU (atlas padding excluded).
     pub bytes: u64,
-}
-
-/// `v` as bytes (plain 4-byte values: no padding).
-fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
-    // SAFETY: u32 and f32 have no padding or invalid bit patterns as bytes.
-    unsafe { std::slice::from_raw_parts(v.as_ptr().cast(), std::mem::size_of_val(v)) }
 }
 
 impl GlGather {
@@ -128,7 +122,7 @@ impl GlGather {
                 slot += 1;
             }
         }
-        let program = compile_compute(gl, "gather.comp", SOURCE, &[("TILE", tile)])?;
+        let program = compile_compute(gl, "gather.comp", &[SOURCE], &[("TILE", tile)])?;
         // SAFETY: object creation and uploads on the current context, with
         // sizes matching the data.
         unsafe {
@@ -190,6 +184,12 @@ impl GlGather {
                 upload(buffers[8], &[]);
             }
             upload(buffers[9], bytes_of(&e.index.offsets));
+            gl.bind_buffer(glow::SHADER_STORAGE_BUFFER, Some(buffers[7]));
+            gl.buffer_data_size(
+                glow::SHADER_STORAGE_BUFFER,
+                (12 * e.n.max(1)) as i32,
+                glow::DYNAMIC_COPY,
+            );
             if let Some(code) = Some(gl.get_error()).filter(|&c| c != glow::NO_ERROR) {
                 return Err(GlError::Call(format!(
                     "uploading the matrix: GL error 0x{code:x}"
@@ -253,33 +253,7 @@ impl GlGather {
                 bytes_of(&tile_active),
                 glow::DYNAMIC_DRAW,
             );
-            gl.bind_buffer(glow::SHADER_STORAGE_BUFFER, Some(self.buffers[7]));
-            gl.buffer_data_size(
-                glow::SHADER_STORAGE_BUFFER,
-                (12 * n) as i32,
-                glow::DYNAMIC_READ,
-            );
-            for (k, b) in self.buffers.iter().enumerate() {
-                gl.bind_buffer_base(glow::SHADER_STORAGE_BUFFER, k as u32, Some(*b));
-            }
-            gl.active_texture(glow::TEXTURE0);
-            gl.bind_texture(glow::TEXTURE_2D_ARRAY, Some(self.atlas));
-            let loc = |name: &str| gl.get_uniform_location(self.program, name);
-            gl.uniform_1_i32(loc("atlas").as_ref(), 0);
-            gl.uniform_1_u32(loc("n").as_ref(), n as u32);
-            gl.uniform_1_u32(loc("atlas_tiles_x").as_ref(), self.atlas_tiles_x as u32);
-            gl.uniform_3_f32(
-                loc("scale").as_ref(),
-                self.scale[0],
-                self.scale[1],
-                self.scale[2],
-            );
-            gl.uniform_1_f32(loc("log_range").as_ref(), self.log_range);
-            gl.uniform_1_u32(loc("format").as_ref(), self.format);
-            gl.uniform_1_u32(loc("layers").as_ref(), self.layers as u32);
-            gl.uniform_1_u32(loc("channels").as_ref(), self.channels as u32);
-            gl.uniform_1_u32(loc("image_size").as_ref(), self.image_size as u32);
-            gl.dispatch_compute(self.tiles_per_side as u32, 1, 1);
+            self.dispatch(gl, self.buffers[2], self.buffers[3]);
             gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT | glow::BUFFER_UPDATE_BARRIER_BIT);
             gl.bind_buffer(glow::SHADER_STORAGE_BUFFER, Some(self.buffers[7]));
             gl.get_buffer_sub_data(glow::SHADER_STORAGE_BUFFER, 0, &mut out);
@@ -293,6 +267,49 @@ impl GlGather {
             .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
             .collect();
         Ok(std::array::from_fn(|c| v[c * n..(c + 1) * n].to_vec()))
+    }
+
+    /// Dispatches the gather of the `B0` in storage buffer `b0` (3 n
+    /// floats, channel-major) over the tile columns flagged in
+    /// `tile_active` (one u32 per tile column), into [`GlGather::h_buffer`];
+    /// nothing is read back. The caller orders later reads with a barrier.
+    pub fn dispatch(&self, gl: &glow::Context, b0: glow::Buffer, tile_active: glow::Buffer) {
+        // SAFETY: binds, uniforms and a dispatch on the current context;
+        // the buffers are sized by `new` and the caller.
+        unsafe {
+            gl.use_program(Some(self.program));
+            for (k, b) in self.buffers.iter().enumerate() {
+                let b = match k {
+                    2 => b0,
+                    3 => tile_active,
+                    _ => *b,
+                };
+                gl.bind_buffer_base(glow::SHADER_STORAGE_BUFFER, k as u32, Some(b));
+            }
+            gl.active_texture(glow::TEXTURE0);
+            gl.bind_texture(glow::TEXTURE_2D_ARRAY, Some(self.atlas));
+            let loc = |name: &str| gl.get_uniform_location(self.program, name);
+            gl.uniform_1_i32(loc("atlas").as_ref(), 0);
+            gl.uniform_1_u32(loc("n").as_ref(), self.n as u32);
+            gl.uniform_1_u32(loc("atlas_tiles_x").as_ref(), self.atlas_tiles_x as u32);
+            gl.uniform_3_f32(
+                loc("scale").as_ref(),
+                self.scale[0],
+                self.scale[1],
+                self.scale[2],
+            );
+            gl.uniform_1_f32(loc("log_range").as_ref(), self.log_range);
+            gl.uniform_1_u32(loc("format").as_ref(), self.format);
+            gl.uniform_1_u32(loc("layers").as_ref(), self.layers as u32);
+            gl.uniform_1_u32(loc("channels").as_ref(), self.channels as u32);
+            gl.uniform_1_u32(loc("image_size").as_ref(), self.image_size as u32);
+            gl.dispatch_compute(self.tiles_per_side as u32, 1, 1);
+        }
+    }
+
+    /// The storage buffer `H` is written to (3 n floats, channel-major).
+    pub fn h_buffer(&self) -> glow::Buffer {
+        self.buffers[7]
     }
 
     /// Frees the GPU objects.

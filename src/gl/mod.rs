@@ -6,7 +6,14 @@
 //! context ([`context`]) and the compressed gather ([`gather`]).
 
 pub mod context;
+pub mod direct;
 pub mod gather;
+pub mod light;
+pub mod renderer;
+pub mod scene;
+pub mod shade;
+pub mod shadow;
+pub mod surface;
 
 use glow::HasContext;
 
@@ -34,50 +41,176 @@ pub enum GlError {
     Call(String),
 }
 
-/// `source` with the version line and `#define NAME value` lines prepended.
-pub fn with_header(source: &str, defines: &[(&str, usize)]) -> String {
+/// The sources concatenated after the version line and `#define NAME
+/// value` lines: shared GLSL files (`light.glsl`, `surface.glsl`) come
+/// before the shader that uses them (GLSL core has no `#include`).
+pub fn with_header(sources: &[&str], defines: &[(&str, usize)]) -> String {
     let mut s = format!("{GLSL_VERSION}\n");
     for (name, value) in defines {
         s += &format!("#define {name} {value}\n");
     }
-    s + source
+    for src in sources {
+        s += src;
+        s += "\n";
+    }
+    s
+}
+
+/// One stage of a program: its kind (`glow::VERTEX_SHADER`, ...), the
+/// file name for messages, and its sources in order.
+pub struct Stage<'a> {
+    pub kind: u32,
+    pub name: &'a str,
+    pub sources: &'a [&'a str],
 }
 
 /// Compiles and links a compute shader (`name` for messages).
 pub fn compile_compute(
     gl: &glow::Context,
     name: &str,
-    source: &str,
+    sources: &[&str],
     defines: &[(&str, usize)],
 ) -> Result<glow::Program, GlError> {
-    let full = with_header(source, defines);
-    let shader_error = |log: String| GlError::Shader {
-        name: name.to_string(),
-        log,
-    };
+    compile_program(
+        gl,
+        &[Stage {
+            kind: glow::COMPUTE_SHADER,
+            name,
+            sources,
+        }],
+        defines,
+    )
+}
+
+/// Compiles the stages and links them into one program. A stage that does
+/// not compile names its file and gives the driver's log; a link error
+/// names every file.
+pub fn compile_program(
+    gl: &glow::Context,
+    stages: &[Stage],
+    defines: &[(&str, usize)],
+) -> Result<glow::Program, GlError> {
+    let all_names = stages
+        .iter()
+        .map(|s| s.name)
+        .collect::<Vec<_>>()
+        .join(" + ");
     // SAFETY: object creation, compilation and linking on the current
     // context; objects are deleted on every path.
     unsafe {
-        let shader = gl
-            .create_shader(glow::COMPUTE_SHADER)
-            .map_err(shader_error)?;
-        gl.shader_source(shader, &full);
-        gl.compile_shader(shader);
-        if !gl.get_shader_compile_status(shader) {
-            let log = gl.get_shader_info_log(shader);
-            gl.delete_shader(shader);
-            return Err(shader_error(log));
+        let mut shaders = Vec::new();
+        let cleanup = |shaders: &[glow::Shader]| {
+            for &sh in shaders {
+                gl.delete_shader(sh);
+            }
+        };
+        for stage in stages {
+            let err = |log: String| GlError::Shader {
+                name: stage.name.to_string(),
+                log,
+            };
+            let shader = match gl.create_shader(stage.kind) {
+                Ok(sh) => sh,
+                Err(e) => {
+                    cleanup(&shaders);
+                    return Err(err(e));
+                }
+            };
+            gl.shader_source(shader, &with_header(stage.sources, defines));
+            gl.compile_shader(shader);
+            if !gl.get_shader_compile_status(shader) {
+                let log = gl.get_shader_info_log(shader);
+                gl.delete_shader(shader);
+                cleanup(&shaders);
+                return Err(err(log));
+            }
+            shaders.push(shader);
         }
-        let program = gl.create_program().map_err(shader_error)?;
-        gl.attach_shader(program, shader);
+        let link_error = |log: String| GlError::Shader {
+            name: all_names.clone(),
+            log,
+        };
+        let program = match gl.create_program() {
+            Ok(p) => p,
+            Err(e) => {
+                cleanup(&shaders);
+                return Err(link_error(e));
+            }
+        };
+        for &sh in &shaders {
+            gl.attach_shader(program, sh);
+        }
         gl.link_program(program);
-        gl.detach_shader(program, shader);
-        gl.delete_shader(shader);
+        for &sh in &shaders {
+            gl.detach_shader(program, sh);
+        }
+        cleanup(&shaders);
         if !gl.get_program_link_status(program) {
             let log = gl.get_program_info_log(program);
             gl.delete_program(program);
-            return Err(shader_error(log));
+            return Err(link_error(log));
         }
         Ok(program)
+    }
+}
+
+/// `v` as bytes (plain 4-byte values: no padding).
+pub(crate) fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
+    // SAFETY: the callers pass u32, i32 and f32 values (and arrays of
+    // them), which have no padding or invalid bit patterns as bytes.
+    unsafe { std::slice::from_raw_parts(v.as_ptr().cast(), std::mem::size_of_val(v)) }
+}
+
+/// A new storage buffer holding `data` (at least 4 bytes: an empty buffer
+/// cannot be bound).
+pub(crate) fn storage_buffer(
+    gl: &glow::Context,
+    data: &[u8],
+    usage: u32,
+) -> Result<glow::Buffer, GlError> {
+    // SAFETY: object creation and an upload of `data` on the current
+    // context.
+    unsafe {
+        let b = gl.create_buffer().map_err(GlError::Call)?;
+        fill_buffer(gl, b, data, usage);
+        Ok(b)
+    }
+}
+
+/// Replaces the contents of storage buffer `b` with `data` (at least 4
+/// bytes).
+pub(crate) fn fill_buffer(gl: &glow::Context, b: glow::Buffer, data: &[u8], usage: u32) {
+    let data = if data.is_empty() { &[0u8; 4][..] } else { data };
+    // SAFETY: an upload of `data` into a buffer of this context.
+    unsafe {
+        gl.bind_buffer(glow::SHADER_STORAGE_BUFFER, Some(b));
+        gl.buffer_data_u8_slice(glow::SHADER_STORAGE_BUFFER, data, usage);
+    }
+}
+
+/// The first `count` f32 values of storage buffer `b` (a blocking read:
+/// for tests and one-off renders, not for frames).
+pub fn read_floats(gl: &glow::Context, b: glow::Buffer, count: usize) -> Vec<f32> {
+    let mut out = vec![0u8; 4 * count];
+    // SAFETY: a barrier and a read of `4 count` bytes, within the buffer's
+    // size by the caller.
+    unsafe {
+        gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT | glow::BUFFER_UPDATE_BARRIER_BIT);
+        gl.bind_buffer(glow::SHADER_STORAGE_BUFFER, Some(b));
+        gl.get_buffer_sub_data(glow::SHADER_STORAGE_BUFFER, 0, &mut out);
+    }
+    out.chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect()
+}
+
+/// `Err` naming `what` when GL reports an error.
+pub(crate) fn check(gl: &glow::Context, what: &str) -> Result<(), GlError> {
+    // SAFETY: an error query on the current context.
+    let code = unsafe { gl.get_error() };
+    if code == glow::NO_ERROR {
+        Ok(())
+    } else {
+        Err(GlError::Call(format!("{what}: GL error 0x{code:x}")))
     }
 }

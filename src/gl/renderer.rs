@@ -1,0 +1,438 @@
+//! The run time on the GPU, one frame at a time: shadow maps
+//! ([`super::shadow`]), direct light on patches and `B0`
+//! ([`super::direct`]), the compressed gather `H = T̃ · B0`
+//! ([`super::gather`]), all on the GPU without a round trip; then the
+//! shading pass ([`super::shade`]) draws any view from any camera. Each
+//! pass is timed with GPU timer queries, read back when they are ready
+//! (never waited for), so timing does not stall the pipeline.
+//!
+//! **What a frame skips.** When the lights and emission scales are those
+//! of the last frame, the shadow, direct and gather passes are not run
+//! (the buffers hold their results); the gather reads only the tile
+//! columns of `B0` that are non-zero (flagged by the direct pass). The CPU
+//! run time ([`crate::runtime::Runtime`]) defines every quantity and is
+//! the reference of the tests (tests/gl_render.rs).
+
+use super::direct::{GlDirect, LIGHT_BINDING, VIEW_BINDING};
+use super::gather::GlGather;
+use super::light::{Packed, NORMAL_OFFSET};
+use super::scene::GlScene;
+use super::shade::{MaterialConstants, Shade};
+use super::shadow::ShadowMaps;
+use super::surface::GlSurfaceMap;
+use super::{bytes_of, fill_buffer, read_floats, storage_buffer, GlError};
+use crate::core::scene_config::{Camera, Light};
+use crate::runtime::emission::Emission;
+use crate::runtime::render::{Image, View};
+use crate::runtime::Runtime;
+use glow::HasContext;
+use std::collections::BTreeMap;
+use std::f32::consts::PI;
+
+/// Options of the GL run time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GlOptions {
+    /// Shadow map side in texels.
+    pub shadow_resolution: usize,
+    /// Sample points per patch for direct light (1..=16).
+    pub samples: usize,
+    /// Skip zero tile columns of `B0` in the gather (off only to measure
+    /// what it saves: the result is the same).
+    pub skip_columns: bool,
+    /// Skip the frame's passes when nothing changed.
+    pub cache: bool,
+}
+
+impl Default for GlOptions {
+    fn default() -> Self {
+        GlOptions {
+            shadow_resolution: 2048,
+            samples: crate::runtime::direct::DEFAULT_SAMPLES,
+            skip_columns: true,
+            cache: true,
+        }
+    }
+}
+
+/// The passes timed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pass {
+    Shadow = 0,
+    Direct = 1,
+    Gather = 2,
+    Shade = 3,
+}
+
+pub const PASSES: [&str; 4] = ["shadow maps", "direct", "gather", "shading"];
+
+/// What one frame did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GlFrameStats {
+    /// Nothing changed: no pass ran.
+    pub unchanged: bool,
+    pub lights: usize,
+    /// Shadow map views rendered.
+    pub views: usize,
+}
+
+/// GPU timer queries per pass, read when ready: a timestamp before and
+/// after each pass (`glQueryCounter`; Mesa's llvmpipe reports
+/// `GL_TIME_ELAPSED` from a zero start, timestamps are right on every
+/// driver tried).
+struct Timers {
+    pending: Vec<(Pass, glow::Query, glow::Query)>,
+    free: Vec<glow::Query>,
+    open: Option<(Pass, glow::Query)>,
+    /// The latest result of each pass, milliseconds.
+    last: [Option<f64>; 4],
+}
+
+impl Timers {
+    fn query(&mut self, gl: &glow::Context) -> Option<glow::Query> {
+        // SAFETY: query creation on the current context.
+        self.free
+            .pop()
+            .or_else(|| unsafe { gl.create_query() }.ok())
+    }
+
+    fn begin(&mut self, gl: &glow::Context, pass: Pass) {
+        if let Some(q) = self.query(gl) {
+            // SAFETY: a timestamp query on the current context.
+            unsafe { gl.query_counter(q, glow::TIMESTAMP) };
+            self.open = Some((pass, q));
+        }
+    }
+
+    fn end(&mut self, gl: &glow::Context) {
+        if let Some((pass, q0)) = self.open.take() {
+            match self.query(gl) {
+                Some(q1) => {
+                    // SAFETY: a timestamp query on the current context.
+                    unsafe { gl.query_counter(q1, glow::TIMESTAMP) };
+                    self.pending.push((pass, q0, q1));
+                }
+                None => self.free.push(q0),
+            }
+        }
+    }
+
+    /// Reads the results that are ready (all of them when `wait`).
+    fn poll(&mut self, gl: &glow::Context, wait: bool) {
+        let mut keep = Vec::new();
+        for (pass, q0, q1) in self.pending.drain(..) {
+            // SAFETY: result queries of issued timestamps; the u64 results
+            // are written to locals (no query buffer is bound).
+            unsafe {
+                let ready =
+                    wait || gl.get_query_parameter_u32(q1, glow::QUERY_RESULT_AVAILABLE) != 0;
+                if ready {
+                    let (mut t0, mut t1) = (0u64, 0u64);
+                    gl.get_query_parameter_u64_with_offset(
+                        q0,
+                        glow::QUERY_RESULT,
+                        &mut t0 as *mut u64 as usize,
+                    );
+                    gl.get_query_parameter_u64_with_offset(
+                        q1,
+                        glow::QUERY_RESULT,
+                        &mut t1 as *mut u64 as usize,
+                    );
+                    self.last[pass as usize] = Some(t1.saturating_sub(t0) as f64 * 1e-6);
+                    self.free.extend([q0, q1]);
+                } else {
+                    keep.push((pass, q0, q1));
+                }
+            }
+        }
+        self.pending = keep;
+    }
+}
+
+/// The lights, views and shadow maps light.glsl reads.
+#[derive(Clone, Copy)]
+struct LightBinding {
+    lights: glow::Buffer,
+    views: glow::Buffer,
+    maps: glow::Texture,
+    /// A nearest-texel comparison sampler for the same maps.
+    nearest: glow::Sampler,
+    count: i32,
+    lift: f32,
+}
+
+impl LightBinding {
+    /// Binds them and sets light.glsl's uniforms in `program` (current).
+    fn bind(&self, gl: &glow::Context, program: glow::Program) {
+        // SAFETY: binds and uniforms on the current context.
+        unsafe {
+            let b = glow::SHADER_STORAGE_BUFFER;
+            gl.bind_buffer_base(b, LIGHT_BINDING as u32, Some(self.lights));
+            gl.bind_buffer_base(b, VIEW_BINDING as u32, Some(self.views));
+            gl.active_texture(glow::TEXTURE1);
+            gl.bind_texture(glow::TEXTURE_2D_ARRAY, Some(self.maps));
+            gl.active_texture(glow::TEXTURE2);
+            gl.bind_texture(glow::TEXTURE_2D_ARRAY, Some(self.maps));
+            gl.bind_sampler(2, Some(self.nearest));
+            gl.active_texture(glow::TEXTURE0);
+            let loc = |name: &str| gl.get_uniform_location(program, name);
+            gl.uniform_1_i32(loc("shadow_maps").as_ref(), 1);
+            gl.uniform_1_i32(loc("shadow_nearest").as_ref(), 2);
+            gl.uniform_1_i32(loc("light_count").as_ref(), self.count);
+            gl.uniform_1_f32(loc("normal_offset").as_ref(), NORMAL_OFFSET);
+            gl.uniform_1_f32(loc("lift").as_ref(), self.lift);
+        }
+    }
+}
+
+/// A baked scene on the GPU, ready for frames.
+pub struct GlRenderer {
+    pub scene: GlScene,
+    map: GlSurfaceMap,
+    shadows: ShadowMaps,
+    direct: GlDirect,
+    pub gather: GlGather,
+    shade: Shade,
+    lights_buffer: glow::Buffer,
+    views_buffer: glow::Buffer,
+    packed: Packed,
+    emission: Emission,
+    materials: Vec<crate::core::scene::Material>,
+    last: Option<(Vec<Light>, BTreeMap<String, f32>)>,
+    last_scales: Option<BTreeMap<String, f32>>,
+    lift: f32,
+    n: usize,
+    timers: Timers,
+    pub options: GlOptions,
+}
+
+impl GlRenderer {
+    /// Uploads the run time's bake and scene (the context must be current).
+    pub fn new(
+        gl: &glow::Context,
+        rt: &Runtime,
+        options: GlOptions,
+    ) -> Result<GlRenderer, GlError> {
+        let baked = &rt.baked;
+        let n = rt.n();
+        let scene = GlScene::new(gl, &rt.scene, baked.options.two_sided)?;
+        let map = GlSurfaceMap::new(gl, &baked.surface_map)?;
+        let shadows = ShadowMaps::new(gl, options.shadow_resolution)?;
+        let direct = GlDirect::new(gl, baked)?;
+        let gather = GlGather::new(gl, &baked.matrix)?;
+        let shade = Shade::new(
+            gl,
+            &[
+                ("LIGHT_BINDING", LIGHT_BINDING),
+                ("VIEW_BINDING", VIEW_BINDING),
+            ],
+        )?;
+        let materials = rt.scene.materials.clone();
+        Ok(GlRenderer {
+            scene,
+            map,
+            shadows,
+            direct,
+            gather,
+            shade,
+            lights_buffer: storage_buffer(gl, &[], glow::DYNAMIC_DRAW)?,
+            views_buffer: storage_buffer(gl, &[], glow::DYNAMIC_DRAW)?,
+            packed: Packed::default(),
+            emission: Emission::new(baked, &rt.scene),
+            materials,
+            last: None,
+            last_scales: None,
+            lift: rt.direct.offset() as f32,
+            n,
+            timers: Timers {
+                pending: Vec::new(),
+                free: Vec::new(),
+                open: None,
+                last: [None; 4],
+            },
+            options,
+        })
+    }
+
+    /// What light.glsl needs bound.
+    fn light_binding(&self) -> LightBinding {
+        LightBinding {
+            lights: self.lights_buffer,
+            views: self.views_buffer,
+            maps: self.shadows.texture,
+            nearest: self.shadows.nearest,
+            count: (self.packed.lights.len() / super::light::LIGHT_WORDS) as i32,
+            lift: self.lift,
+        }
+    }
+
+    /// Lights the scene: shadow maps, `D`, `B0` and `H` on the GPU (module
+    /// doc for what is skipped). Nothing is read back.
+    pub fn frame(
+        &mut self,
+        gl: &glow::Context,
+        lights: &[Light],
+        scales: &BTreeMap<String, f32>,
+    ) -> Result<GlFrameStats, GlError> {
+        self.timers.poll(gl, false);
+        let mut stats = GlFrameStats {
+            lights: lights.len(),
+            ..GlFrameStats::default()
+        };
+        if self.options.cache
+            && self
+                .last
+                .as_ref()
+                .is_some_and(|(l, s)| l == lights && s == scales)
+        {
+            stats.unchanged = true;
+            return Ok(stats);
+        }
+        let res = self.shadows.resolution;
+        self.packed = Packed::new(lights, self.scene.lo, self.scene.hi, res);
+        stats.views = self.packed.views.len();
+        fill_buffer(
+            gl,
+            self.lights_buffer,
+            bytes_of(&self.packed.lights),
+            glow::DYNAMIC_DRAW,
+        );
+        fill_buffer(
+            gl,
+            self.views_buffer,
+            bytes_of(&self.packed.view_words(res)),
+            glow::DYNAMIC_DRAW,
+        );
+        if self.last_scales.as_ref() != Some(scales) {
+            self.direct
+                .set_emission(gl, &self.emission.exitance(self.n, scales));
+            self.last_scales = Some(scales.clone());
+        }
+        self.timers.begin(gl, Pass::Shadow);
+        self.shadows.render(gl, &self.scene, &self.packed.views)?;
+        self.timers.end(gl);
+        self.timers.begin(gl, Pass::Direct);
+        let samples = self.options.samples;
+        let binding = self.light_binding();
+        self.direct.dispatch(gl, samples, |p| binding.bind(gl, p));
+        self.timers.end(gl);
+        if !self.options.skip_columns {
+            self.direct.activate_all(gl);
+        }
+        // SAFETY: a barrier between the direct pass's writes and the
+        // gather's reads.
+        unsafe { gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT) };
+        self.timers.begin(gl, Pass::Gather);
+        self.gather
+            .dispatch(gl, self.direct.b0_buffer(), self.direct.active_buffer());
+        self.timers.end(gl);
+        // SAFETY: the gather's writes are read by the shading pass.
+        unsafe { gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT) };
+        super::check(gl, "the frame")?;
+        self.last = Some((lights.to_vec(), scales.clone()));
+        Ok(stats)
+    }
+
+    /// Draws `view` from `camera` (`width × height`) with the last frame's
+    /// lights and `scales`, into the shading pass's target.
+    pub fn draw(
+        &mut self,
+        gl: &glow::Context,
+        camera: &Camera,
+        view: View,
+        size: (usize, usize),
+        scales: &BTreeMap<String, f32>,
+    ) -> Result<(), GlError> {
+        let materials: Vec<MaterialConstants> = self
+            .materials
+            .iter()
+            .map(|m| {
+                let s = scales.get(&m.name).copied().unwrap_or(1.0);
+                MaterialConstants {
+                    kd: m.kd,
+                    albedo: m.albedo,
+                    emitted: m.emission.map(|k| s * k / PI),
+                }
+            })
+            .collect();
+        // SAFETY: binds of this renderer's buffers on the current context.
+        unsafe {
+            let b = glow::SHADER_STORAGE_BUFFER;
+            gl.bind_buffer_base(b, 6, Some(self.gather.h_buffer()));
+            gl.bind_buffer_base(b, 7, Some(self.direct.albedo_buffer()));
+        }
+        let binding = self.light_binding();
+        self.timers.begin(gl, Pass::Shade);
+        let r = self.shade.draw(
+            gl,
+            &self.scene,
+            &self.map,
+            &materials,
+            camera,
+            view,
+            size,
+            self.n,
+            |p| binding.bind(gl, p),
+        );
+        self.timers.end(gl);
+        r
+    }
+
+    /// [`GlRenderer::draw`], then the image read back (blocking).
+    pub fn render(
+        &mut self,
+        gl: &glow::Context,
+        camera: &Camera,
+        view: View,
+        size: (usize, usize),
+        scales: &BTreeMap<String, f32>,
+    ) -> Result<Image, GlError> {
+        self.draw(gl, camera, view, size, scales)?;
+        Ok(self.shade.read(gl))
+    }
+
+    /// The latest GPU time of each pass (milliseconds), in [`PASSES`]
+    /// order; `wait` blocks until every query issued is done.
+    pub fn pass_times(&mut self, gl: &glow::Context, wait: bool) -> [Option<f64>; 4] {
+        self.timers.poll(gl, wait);
+        self.timers.last
+    }
+
+    /// `D`, `B0` and `H` of the last frame read back (blocking; for tests
+    /// and reports), three channels of `n`.
+    pub fn d(&self, gl: &glow::Context) -> [Vec<f32>; 3] {
+        split(read_floats(gl, self.direct.d_buffer(), 3 * self.n), self.n)
+    }
+    pub fn b0(&self, gl: &glow::Context) -> [Vec<f32>; 3] {
+        split(read_floats(gl, self.direct.b0_buffer(), 3 * self.n), self.n)
+    }
+    pub fn h(&self, gl: &glow::Context) -> [Vec<f32>; 3] {
+        split(read_floats(gl, self.gather.h_buffer(), 3 * self.n), self.n)
+    }
+
+    /// Frees the GPU objects.
+    pub fn delete(self, gl: &glow::Context) {
+        self.scene.delete(gl);
+        self.map.delete(gl);
+        self.shadows.delete(gl);
+        self.direct.delete(gl);
+        self.gather.delete(gl);
+        self.shade.delete(gl);
+        // SAFETY: objects of this context, not used after.
+        unsafe {
+            gl.delete_buffer(self.lights_buffer);
+            gl.delete_buffer(self.views_buffer);
+            for q in self
+                .timers
+                .free
+                .into_iter()
+                .chain(self.timers.pending.into_iter().flat_map(|p| [p.1, p.2]))
+            {
+                gl.delete_query(q);
+            }
+        }
+    }
+}
+
+fn split(v: Vec<f32>, n: usize) -> [Vec<f32>; 3] {
+    std::array::from_fn(|c| v[c * n..(c + 1) * n].to_vec())
+}

@@ -1,0 +1,187 @@
+//! The scene's triangles on the GPU, drawn by the shadow and shading
+//! passes: one vertex buffer of the front triangles expanded to three
+//! vertices each (position, texture coordinates, triangle index), sorted by
+//! material so that each material is one draw with its albedo texture
+//! bound; every triangle's geometric normal in a storage buffer (the
+//! shading pass's normal, as the CPU renderer's); and each material's
+//! `map_Kd` as an sRGB texture with mipmaps (its CPU counterpart is
+//! [`crate::runtime::texture`], sampled bilinearly without mipmaps: the
+//! two agree where a texel covers a pixel or more).
+//!
+//! A two-sided bake's scene holds the back-side twins after the front
+//! triangles ([`crate::core::scene::Scene::with_back_sides`]); only the
+//! front half is drawn (the twins are coincident) and the shading pass
+//! swaps to the twin where it sees a front triangle from behind.
+
+use super::{bytes_of, storage_buffer, GlError};
+use crate::core::scene::Scene;
+use glow::HasContext;
+
+/// Bytes per expanded vertex: position (3 f32), texture coordinates
+/// (2 f32), triangle index (u32).
+pub const VERTEX_BYTES: usize = 24;
+
+/// One material's draw.
+#[derive(Clone, Debug)]
+pub struct Draw {
+    pub material: usize,
+    pub first_vertex: usize,
+    pub vertices: usize,
+}
+
+/// The scene on the GPU.
+pub struct GlScene {
+    pub vao: glow::VertexArray,
+    vbo: glow::Buffer,
+    /// Three f32 per triangle (every triangle, twins included).
+    pub normals: glow::Buffer,
+    pub draws: Vec<Draw>,
+    /// Per material: its albedo texture, when it has one and the scene has
+    /// texture coordinates.
+    pub textures: Vec<Option<glow::Texture>>,
+    /// Front triangles drawn, and all triangles (twins included).
+    pub drawn: usize,
+    pub triangles: usize,
+    pub two_sided: bool,
+    /// Bounds of the scene.
+    pub lo: [f32; 3],
+    pub hi: [f32; 3],
+}
+
+impl GlScene {
+    /// Uploads `scene` (with its twins when `two_sided`). The context must
+    /// be current.
+    pub fn new(gl: &glow::Context, scene: &Scene, two_sided: bool) -> Result<GlScene, GlError> {
+        let triangles = scene.triangles.len();
+        let drawn = if two_sided { triangles / 2 } else { triangles };
+        let mut order: Vec<usize> = (0..drawn).collect();
+        order.sort_by_key(|&t| scene.triangle_material[t]);
+        let has_uv = !scene.texcoords.is_empty();
+        let mut words: Vec<u32> = Vec::with_capacity(drawn * 3 * VERTEX_BYTES / 4);
+        let mut draws: Vec<Draw> = Vec::new();
+        for (k, &t) in order.iter().enumerate() {
+            let m = scene.triangle_material[t] as usize;
+            match draws.last_mut() {
+                Some(d) if d.material == m => d.vertices += 3,
+                _ => draws.push(Draw {
+                    material: m,
+                    first_vertex: 3 * k,
+                    vertices: 3,
+                }),
+            }
+            for v in scene.triangles[t] {
+                let p = scene.positions[v as usize];
+                let uv = if has_uv {
+                    scene.texcoords[v as usize]
+                } else {
+                    [0.0; 2]
+                };
+                words.extend([p[0], p[1], p[2], uv[0], uv[1]].map(f32::to_bits));
+                words.push(t as u32);
+            }
+        }
+        let normals: Vec<f32> = (0..triangles)
+            .flat_map(|t| scene.triangle_normal(t).map(|c| c as f32))
+            .collect();
+        let (lo, hi) = scene.bounds();
+        // SAFETY: object creation and uploads on the current context; the
+        // attribute layout matches VERTEX_BYTES.
+        unsafe {
+            let vao = gl.create_vertex_array().map_err(GlError::Call)?;
+            let vbo = gl.create_buffer().map_err(GlError::Call)?;
+            gl.bind_vertex_array(Some(vao));
+            gl.bind_buffer(glow::ARRAY_BUFFER, Some(vbo));
+            let data = bytes_of(&words);
+            let data = if data.is_empty() { &[0u8; 4][..] } else { data };
+            gl.buffer_data_u8_slice(glow::ARRAY_BUFFER, data, glow::STATIC_DRAW);
+            let stride = VERTEX_BYTES as i32;
+            gl.enable_vertex_attrib_array(0);
+            gl.vertex_attrib_pointer_f32(0, 3, glow::FLOAT, false, stride, 0);
+            gl.enable_vertex_attrib_array(1);
+            gl.vertex_attrib_pointer_f32(1, 2, glow::FLOAT, false, stride, 12);
+            gl.enable_vertex_attrib_array(2);
+            gl.vertex_attrib_pointer_i32(2, 1, glow::UNSIGNED_INT, stride, 20);
+            gl.bind_vertex_array(None);
+            let normals = storage_buffer(gl, bytes_of(&normals), glow::STATIC_DRAW)?;
+            let mut textures = Vec::with_capacity(scene.materials.len());
+            for m in &scene.materials {
+                let tex = match (&m.diffuse_texture, has_uv) {
+                    (Some(path), true) => match image::open(path) {
+                        Ok(img) => Some(upload_texture(gl, &img.to_rgb8())?),
+                        // The loader counted it as missing; the CPU
+                        // renderer uses the material's albedo too.
+                        Err(_) => None,
+                    },
+                    _ => None,
+                };
+                textures.push(tex);
+            }
+            super::check(gl, "uploading the scene")?;
+            Ok(GlScene {
+                vao,
+                vbo,
+                normals,
+                draws,
+                textures,
+                drawn,
+                triangles,
+                two_sided,
+                lo,
+                hi,
+            })
+        }
+    }
+
+    /// Draws every front triangle (for the shadow maps: no textures).
+    pub fn draw_all(&self, gl: &glow::Context) {
+        // SAFETY: a draw of the uploaded vertices on the current context.
+        unsafe {
+            gl.bind_vertex_array(Some(self.vao));
+            gl.draw_arrays(glow::TRIANGLES, 0, (3 * self.drawn) as i32);
+            gl.bind_vertex_array(None);
+        }
+    }
+
+    /// Frees the GPU objects.
+    pub fn delete(self, gl: &glow::Context) {
+        // SAFETY: objects of this context, not used after.
+        unsafe {
+            gl.delete_vertex_array(self.vao);
+            gl.delete_buffer(self.vbo);
+            gl.delete_buffer(self.normals);
+            for t in self.textures.into_iter().flatten() {
+                gl.delete_texture(t);
+            }
+        }
+    }
+}
+
+/// An sRGB texture with mipmaps, rows as stored in the file (top first:
+/// OBJ's `v` is up, so the shader samples at `(u, 1 − v)`, as the CPU's
+/// [`crate::runtime::texture::Texture::sample`] does).
+fn upload_texture(gl: &glow::Context, img: &image::RgbImage) -> Result<glow::Texture, GlError> {
+    // SAFETY: texture creation and an upload of w × h RGB bytes.
+    unsafe {
+        let t = gl.create_texture().map_err(GlError::Call)?;
+        gl.bind_texture(glow::TEXTURE_2D, Some(t));
+        gl.pixel_store_i32(glow::UNPACK_ALIGNMENT, 1);
+        gl.tex_image_2d(
+            glow::TEXTURE_2D,
+            0,
+            glow::SRGB8 as i32,
+            img.width() as i32,
+            img.height() as i32,
+            0,
+            glow::RGB,
+            glow::UNSIGNED_BYTE,
+            glow::PixelUnpackData::Slice(Some(img.as_raw())),
+        );
+        gl.generate_mipmap(glow::TEXTURE_2D);
+        let p = |k: u32, v: u32| gl.tex_parameter_i32(glow::TEXTURE_2D, k, v as i32);
+        p(glow::TEXTURE_MIN_FILTER, glow::LINEAR_MIPMAP_LINEAR);
+        p(glow::TEXTURE_MAG_FILTER, glow::LINEAR);
+        p(glow::TEXTURE_WRAP_S, glow::REPEAT);
+        p(glow::TEXTURE_WRAP_T, glow::REPEAT);
+        Ok(t)
+    }
+}

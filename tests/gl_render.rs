@@ -1,0 +1,387 @@
+//! The GL run time (src/gl/: shadow maps, direct light on patches, the
+//! gather, per-fragment shading) against the CPU run time that defines
+//! every quantity (src/runtime/), on a headless EGL context (Mesa llvmpipe
+//! here; the tests fail, naming what to install, where there is none).
+//!
+//! Where the two differ, and why the bounds below hold:
+//! - **Shadows.** The CPU casts a ray per point; the GPU reads a shadow map
+//!   filtered over 4 × 4 texels. They agree except within about two texels
+//!   of a shadow edge, where the GPU's shadow is a ramp: per patch `D`
+//!   differs where a sample point lies in that band, so `D` is compared in
+//!   relative RMS over all patches, not per patch.
+//! - **The gather** decodes BC1 as llvmpipe rounds it (at most one log
+//!   step, tests/gl_gather.rs), so `H` computed by the GL gather from the GL
+//!   `B0` agrees with the CPU gather of the same `B0` within `e^{L/255} − 1`
+//!   of each value.
+//! - **Pixels** are sampled at the same centres (rasterisation and the CPU's
+//!   primary rays); the surface map is evaluated in f32 on the GPU and f64
+//!   on the CPU, which changes a voxel only for points within f32 rounding
+//!   of a voxel face.
+
+// Index loops over channels and patches read several arrays at once.
+#![allow(clippy::needless_range_loop)]
+
+mod common;
+
+use common::{quad, write_quads, Quad};
+use radiosity::bake::voxelize::Resolution;
+use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
+use radiosity::bakefile::baked::Baked;
+use radiosity::bakefile::codec::CodecKind;
+use radiosity::core::math::SplitMix64;
+use radiosity::core::scene;
+use radiosity::core::scene_config::{self, Light, SceneConfig};
+use radiosity::gl::context::Headless;
+use radiosity::gl::renderer::{GlOptions, GlRenderer};
+use radiosity::gl::{compile_program, GlError, Stage};
+use radiosity::runtime::render::{render, Image, View};
+use radiosity::runtime::texture::Albedo;
+use radiosity::runtime::{Runtime, RuntimeOptions};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+fn context() -> Headless {
+    Headless::new().unwrap_or_else(|e| {
+        panic!("no headless OpenGL 4.5 (EGL on Mesa llvmpipe: run scripts/setup): {e}")
+    })
+}
+
+/// Bakes `obj` on the OpenCL device and loads it.
+fn bake(obj: &Path, resolution: Resolution) -> Runtime {
+    let mut c = BakeConfig::new(obj.to_path_buf(), resolution);
+    c.compute = ComputeChoice::OpenCl(Default::default());
+    c.codec = CodecChoice::Fixed(CodecKind::default());
+    c.error_lights = 0;
+    let out = obj.with_extension("rad");
+    c.output = Some(out.clone());
+    common::gpu();
+    bake::run(&c, &mut |_| {}).expect("bake");
+    let baked = Baked::load(&out).unwrap();
+    let s = scene::load(obj).unwrap();
+    Runtime::new(baked, s, RuntimeOptions::default())
+}
+
+/// The bundled Cornell box, copied to a temporary directory and baked.
+fn cornell(tag: &str) -> (Runtime, SceneConfig) {
+    let src = common::bundled("cornell_box");
+    let dir = common::temp_dir(tag);
+    for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
+        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
+    }
+    let rt = bake(&dir.join("cornell_box.obj"), Resolution::VoxelSize(40.0));
+    let config = scene_config::load(&dir.join("cornell_box.json")).unwrap();
+    (rt, config)
+}
+
+/// Relative RMS difference `sqrt(Σ (a − b)² / Σ b²)` over three channels.
+fn rel_rms(a: &[Vec<f32>; 3], b: &[Vec<f32>; 3]) -> f64 {
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for c in 0..3 {
+        for (x, y) in a[c].iter().zip(&b[c]) {
+            num += (*x as f64 - *y as f64).powi(2);
+            den += (*y as f64).powi(2);
+        }
+    }
+    (num / den.max(1e-300)).sqrt()
+}
+
+/// Relative RMS difference of two images over the pixels both cover, and
+/// the share of pixels whose coverage differs.
+fn image_diff(a: &Image, b: &Image) -> (f64, f64) {
+    let (mut num, mut den, mut differ) = (0.0f64, 0.0f64, 0usize);
+    for i in 0..a.radiance.len() {
+        if a.covered[i] != b.covered[i] {
+            differ += 1;
+            continue;
+        }
+        if !a.covered[i] {
+            continue;
+        }
+        for c in 0..3 {
+            num += (a.radiance[i][c] as f64 - b.radiance[i][c] as f64).powi(2);
+            den += (b.radiance[i][c] as f64).powi(2);
+        }
+    }
+    (
+        (num / den.max(1e-300)).sqrt(),
+        differ as f64 / a.radiance.len() as f64,
+    )
+}
+
+/// Nine lights of every kind inside the Cornell box (millimetres): the
+/// file's wide spot (a cube of shadow views), narrow spots (one view),
+/// points (cubes) and a directional light through the open front.
+fn nine_lights(config: &SceneConfig) -> Vec<Light> {
+    let mut lights = config.lights.clone();
+    let mut rng = SplitMix64::new(12);
+    let mut r = |lo: f64, hi: f64| (lo + (hi - lo) * rng.uniform()) as f32;
+    for _ in 0..4 {
+        lights.push(Light::Spot {
+            position: [r(100.0, 450.0), r(350.0, 520.0), r(100.0, 450.0)],
+            direction: [r(-0.5, 0.5), -1.0, r(-0.5, 0.5)],
+            intensity: [r(2e4, 6e4), r(2e4, 6e4), r(2e4, 6e4)],
+            cone_angle_deg: r(20.0, 45.0),
+            beam_angle_deg: 10.0,
+        });
+    }
+    for _ in 0..3 {
+        lights.push(Light::Point {
+            position: [r(100.0, 450.0), r(50.0, 500.0), r(50.0, 500.0)],
+            intensity: [r(5e3, 2e4); 3],
+        });
+    }
+    lights.push(Light::Directional {
+        direction: [0.2, -0.5, 1.0],
+        irradiance: [0.3, 0.3, 0.25],
+    });
+    lights
+}
+
+#[test]
+fn gl_direct_light_and_gather_on_patches_match_the_cpu_run_time_with_nine_lights() {
+    let ctx = context();
+    let gl = &ctx.gl;
+    let (mut rt, config) = cornell("gl-patches");
+    let lights = nine_lights(&config);
+    assert!(lights.len() >= 9);
+    let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).expect("GL renderer");
+    let stats = r.frame(gl, &lights, &config.emission).unwrap();
+    assert_eq!(stats.lights, lights.len());
+    rt.frame(&lights, &config.emission);
+    let (d_gl, b0_gl, h_gl) = (r.d(gl), r.b0(gl), r.h(gl));
+    for v in d_gl.iter().chain(&b0_gl).chain(&h_gl).flatten() {
+        assert!(
+            v.is_finite() && *v >= 0.0,
+            "a non-finite or negative value {v}"
+        );
+    }
+    let e_d = rel_rms(&d_gl, rt.d());
+    let e_h = rel_rms(&h_gl, rt.h());
+    // The GL gather of the GL B0 against the CPU gather of the same B0.
+    let (h_cpu_of_gl, _, _) = rt.product(&b0_gl);
+    let e_gather = rel_rms(&h_gl, &h_cpu_of_gl);
+    eprintln!("D rel RMS {e_d:.4}, H rel RMS {e_h:.4}, gather alone {e_gather:.2e}");
+    // Shadow-edge bands (module doc). Measured 0.4 % on llvmpipe with 2048²
+    // maps; the bound is 5 times that, for other rasterisers' rounding.
+    assert!(e_d < 0.02, "D: relative RMS {e_d} against the CPU's rays");
+    // H integrates D over the scene plus the gather's rounding (below):
+    // measured 0.44 %.
+    assert!(e_h < 0.01, "H: relative RMS {e_h}");
+    // One log step of BC1 (L = log range, tests/gl_gather.rs) bounds every
+    // entry, hence the RMS.
+    let bound = (rt.baked.matrix.log_range as f64 / 255.0).exp_m1() + 1e-5;
+    assert!(e_gather <= bound, "gather: {e_gather} > {bound}");
+    r.delete(gl);
+}
+
+#[test]
+fn gl_images_match_the_cpu_renderer_in_every_view() {
+    let ctx = context();
+    let gl = &ctx.gl;
+    let (mut rt, config) = cornell("gl-image");
+    let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).expect("GL renderer");
+    r.frame(gl, &config.lights, &config.emission).unwrap();
+    rt.frame(&config.lights, &config.emission);
+    let albedo = Albedo::new(&rt.scene);
+    let (w, h) = (160, 120);
+    for view in [View::Final, View::Direct, View::Indirect, View::Patches] {
+        let gpu = r
+            .render(gl, &config.camera, view, (w, h), &config.emission)
+            .unwrap();
+        let (cpu, _) = render(&rt, &config, view, w, h, &albedo);
+        let (e, coverage) = image_diff(&gpu, &cpu);
+        eprintln!("{view:?}: relative RMS {e:.4}, coverage differs on {coverage:.4}");
+        assert!(coverage < 0.01, "{view:?}: coverage differs on {coverage}");
+        // Measured 0.2 % (final, direct: shadow edges) and 0.7 % (indirect,
+        // patches: H's gather rounding, module doc); bound 3 times the
+        // larger.
+        assert!(e < 0.02, "{view:?}: relative RMS {e}");
+    }
+    r.delete(gl);
+}
+
+#[test]
+fn column_skipping_and_unchanged_frames_give_the_image_of_the_full_gather() {
+    let ctx = context();
+    let gl = &ctx.gl;
+    let (rt, config) = cornell("gl-skip");
+    // A narrow spot lights a part of the patches: most columns are skipped.
+    let spot = Light::Spot {
+        position: [278.0, 540.0, 279.5],
+        direction: [0.0, -1.0, 0.0],
+        intensity: [5e4; 3],
+        cone_angle_deg: 15.0,
+        beam_angle_deg: 10.0,
+    };
+    let no_emission: BTreeMap<String, f32> = [("light".to_string(), 0.0)].into();
+    let lights = vec![spot];
+    let mut skip = GlRenderer::new(gl, &rt, GlOptions::default()).unwrap();
+    let mut full = GlRenderer::new(
+        gl,
+        &rt,
+        GlOptions {
+            skip_columns: false,
+            cache: false,
+            ..GlOptions::default()
+        },
+    )
+    .unwrap();
+    let a = skip.frame(gl, &lights, &no_emission).unwrap();
+    assert!(!a.unchanged);
+    full.frame(gl, &lights, &no_emission).unwrap();
+    let (h_skip, h_full) = (skip.h(gl), full.h(gl));
+    let lit = skip.b0(gl)[0].iter().filter(|&&v| v != 0.0).count();
+    assert!(
+        lit > 0 && lit < rt.n() / 2,
+        "{lit} of {} patches lit",
+        rt.n()
+    );
+    for c in 0..3 {
+        for (x, y) in h_skip[c].iter().zip(&h_full[c]) {
+            assert_eq!(x.to_bits(), y.to_bits(), "skipped columns change H");
+        }
+    }
+    let cam = &config.camera;
+    let img1 = skip
+        .render(gl, cam, View::Final, (96, 72), &no_emission)
+        .unwrap();
+    // The same lights again: nothing runs, and the image is the same.
+    let b = skip.frame(gl, &lights, &no_emission).unwrap();
+    assert!(b.unchanged);
+    let img2 = skip
+        .render(gl, cam, View::Final, (96, 72), &no_emission)
+        .unwrap();
+    let img_full = full
+        .render(gl, cam, View::Final, (96, 72), &no_emission)
+        .unwrap();
+    for i in 0..img1.radiance.len() {
+        assert_eq!(img1.radiance[i], img2.radiance[i]);
+        assert_eq!(img1.radiance[i], img_full.radiance[i]);
+    }
+    skip.delete(gl);
+    full.delete(gl);
+}
+
+#[test]
+fn gl_cornell_box_wall_next_to_the_red_wall_receives_more_red() {
+    let ctx = context();
+    let gl = &ctx.gl;
+    let (rt, config) = cornell("gl-bleed");
+    let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).unwrap();
+    r.frame(gl, &config.lights, &config.emission).unwrap();
+    let (w, h) = (160, 120);
+    let img = r
+        .render(gl, &config.camera, View::Indirect, (w, h), &config.emission)
+        .unwrap();
+    let mean = |x0: f64, x1: f64| {
+        let mut s = [0.0f64; 3];
+        let mut k = 0;
+        for y in (0.2 * h as f64) as usize..(0.35 * h as f64) as usize {
+            for x in (x0 * w as f64) as usize..(x1 * w as f64) as usize {
+                let p = img.radiance[y * w + x];
+                for c in 0..3 {
+                    s[c] += p[c] as f64;
+                }
+                k += 1;
+            }
+        }
+        s.map(|v| v / k as f64)
+    };
+    let (left, right) = (mean(0.30, 0.36), mean(0.64, 0.70));
+    assert!(left[0] > left[1], "next to the red wall: {left:?}");
+    assert!(
+        left[0] / left[1] > 1.1 * (right[0] / right[1]),
+        "red/green next to the red wall {} against next to the green wall {}",
+        left[0] / left[1],
+        right[0] / right[1]
+    );
+    r.delete(gl);
+}
+
+/// The inward faces of the box `[0, sx] × [0, sy] × [0, sz]`, albedo `a`.
+fn box_inward(s: [f64; 3], a: f64) -> Vec<Quad> {
+    let mut q = Vec::new();
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for side in [0.0, 1.0] {
+            let mut c = [s[0] / 2.0, s[1] / 2.0, s[2] / 2.0];
+            c[axis] = side * s[axis];
+            let mut eu = [0.0; 3];
+            eu[u] = 1.0;
+            let mut ev = [0.0; 3];
+            ev[v] = if side == 1.0 { -1.0 } else { 1.0 };
+            q.push(quad(c, eu, ev, s[u] / 2.0, s[v] / 2.0, [a; 3]));
+        }
+    }
+    q
+}
+
+#[test]
+fn gl_a_light_outside_a_closed_room_changes_nothing_inside() {
+    let ctx = context();
+    let gl = &ctx.gl;
+    let obj = write_quads("gl-outside", &box_inward([1.0, 0.75, 1.25], 0.6));
+    let rt = bake(&obj, Resolution::VoxelSize(0.125));
+    let inside = Light::Point {
+        position: [0.5, 0.4, 0.6],
+        intensity: [2.0; 3],
+    };
+    let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).unwrap();
+    r.frame(gl, std::slice::from_ref(&inside), &BTreeMap::new())
+        .unwrap();
+    let (d0, h0) = (r.d(gl), r.h(gl));
+    assert!(h0[0].iter().any(|&v| v > 0.0));
+    let mut rng = SplitMix64::new(3);
+    for k in 0..6 {
+        let p = [
+            3.0 + rng.uniform() as f32,
+            -2.0 + 4.0 * rng.uniform() as f32,
+            3.0 * rng.uniform() as f32,
+        ];
+        let outside = if k % 2 == 0 {
+            Light::Point {
+                position: p,
+                intensity: [50.0; 3],
+            }
+        } else {
+            Light::Directional {
+                direction: [-p[0], -p[1], -p[2]],
+                irradiance: [5.0; 3],
+            }
+        };
+        r.frame(gl, &[inside.clone(), outside], &BTreeMap::new())
+            .unwrap();
+        let (d, h) = (r.d(gl), r.h(gl));
+        for c in 0..3 {
+            for j in 0..rt.n() {
+                assert_eq!(d[c][j], d0[c][j], "light {k} leaks into patch {j}");
+                assert_eq!(h[c][j], h0[c][j], "light {k} leaks into H of patch {j}");
+            }
+        }
+    }
+    r.delete(gl);
+}
+
+#[test]
+fn a_broken_shader_names_its_file_and_gives_the_drivers_log() {
+    let ctx = context();
+    let gl = &ctx.gl;
+    let err = compile_program(
+        gl,
+        &[Stage {
+            kind: glow::FRAGMENT_SHADER,
+            name: "broken.frag",
+            sources: &["out vec4 c;\nvoid main() { c = undefined_thing; }\n"],
+        }],
+        &[],
+    )
+    .expect_err("a shader with an undefined name compiles");
+    match &err {
+        GlError::Shader { name, log } => {
+            assert_eq!(name, "broken.frag");
+            assert!(log.contains("undefined_thing"), "log: {log}");
+        }
+        e => panic!("expected a shader error, got {e}"),
+    }
+    assert!(err.to_string().contains("broken.frag"));
+}
