@@ -114,3 +114,4 @@ pub mod gl;
 pub mod reference;
 pub mod runtime;
 pub mod synthetic;
+pub mod viewer;

@@ -55,10 +55,15 @@ enum Command {
     /// compress, mesh-to-patch map, write the .rad file (-o), report.
     Bake(BakeArgs),
     /// Render a view of a bake (or of a scene, baked first or taken from the
-    /// bake cache) on the CPU: direct light with shadows, indirect light
-    /// from the compressed matrix through the surface map, tone mapped to
-    /// an sRGB PNG (and optionally the linear radiance as PFM).
+    /// bake cache) on the CPU or headless on GL: direct light with shadows,
+    /// indirect light from the compressed matrix through the surface map,
+    /// tone mapped to an sRGB PNG (and optionally the linear radiance as
+    /// PFM).
     Render(RenderArgs),
+    /// Open a window on a bake (or a scene, baked first or taken from the
+    /// bake cache): move the camera and the lights and watch indirect light
+    /// follow (keys: H). Needs a display; `render` draws the same headless.
+    View(ViewArgs),
     /// Write a bundled scene (OBJ + MTL + camera/lights JSON) into a directory.
     Generate {
         /// Scene name (see --list).
@@ -257,6 +262,49 @@ struct RenderArgs {
     /// Exposure (default: automatic, 0.18 over the log-average luminance).
     #[arg(long)]
     exposure: Option<f32>,
+    /// Sample points per patch for direct light (1..=16).
+    #[arg(long, default_value_t = radiosity::runtime::direct::DEFAULT_SAMPLES)]
+    samples: usize,
+    /// Target patch count when baking a scene.
+    #[arg(long, default_value_t = 2000)]
+    patches: usize,
+    #[command(flatten)]
+    device: DeviceArgs,
+}
+
+#[derive(Args)]
+struct ViewArgs {
+    /// A bake file (.rad), or a scene (.obj) to bake first (or reuse from
+    /// the bake cache).
+    input: PathBuf,
+    /// The camera and lights (default: the scene's NAME.json beside it).
+    #[arg(long, value_name = "FILE.json")]
+    camera_lights: Option<PathBuf>,
+    /// Where F5 / Ctrl+S saves the camera and lights (default: the
+    /// camera/lights file).
+    #[arg(long, value_name = "FILE.json")]
+    save_to: Option<PathBuf>,
+    /// The scene the bake was made from (default: the one the bake file
+    /// names).
+    #[arg(long, value_name = "SCENE.obj")]
+    scene: Option<PathBuf>,
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    #[arg(long, default_value_t = 720)]
+    height: u32,
+    /// Render this many frames, then exit (with --screenshot: save the
+    /// last one).
+    #[arg(long)]
+    frames: Option<u64>,
+    /// The PNG --frames saves.
+    #[arg(long, value_name = "FILE.png")]
+    screenshot: Option<PathBuf>,
+    /// Exposure (default: automatic from the first frame).
+    #[arg(long)]
+    exposure: Option<f32>,
+    /// Shadow map side in texels.
+    #[arg(long, default_value_t = 2048)]
+    shadow_resolution: usize,
     /// Sample points per patch for direct light (1..=16).
     #[arg(long, default_value_t = radiosity::runtime::direct::DEFAULT_SAMPLES)]
     samples: usize,
@@ -487,6 +535,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Info { path, json } => info(&path, json),
         Command::Bake(args) => bake(args),
         Command::Render(args) => render(args),
+        Command::View(args) => view(args),
         Command::Generate { name, output, list } => generate(name, output, list),
         Command::Bench { which } => match which {
             BenchCommand::Accuracy {
@@ -691,7 +740,6 @@ fn camera_lights(given: Option<PathBuf>, scene: &Path) -> anyhow::Result<SceneCo
 
 /// `radiosity render`.
 fn render(args: RenderArgs) -> anyhow::Result<()> {
-    use radiosity::bakefile::baked::{resolve_scene_path, Baked};
     use radiosity::runtime::render::{render, View};
     use radiosity::runtime::texture::Albedo;
     use radiosity::runtime::{Runtime, RuntimeOptions};
@@ -725,28 +773,8 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("creating the output directory {}", dir.display()))?;
     }
-    let rad = bake_for(&args.input, args.patches, &args.device)?;
-    let baked = Baked::load(&rad)?;
-    let scene_path = args
-        .scene
-        .clone()
-        .unwrap_or_else(|| resolve_scene_path(&rad, &baked.info.scene));
-    let scene = scene::load(&scene_path).with_context(|| {
-        format!(
-            "loading the scene {} (give it with --scene)",
-            scene_path.display()
-        )
-    })?;
-    let hash = bakefile::SceneHash::of_scene(&scene)?;
-    let diff = baked.scene_hash.differences(&hash);
-    if !diff.is_empty() {
-        bail!(
-            "{} was baked from a different scene than {} ({} changed): bake it again",
-            rad.display(),
-            scene_path.display(),
-            diff.join(", ")
-        );
-    }
+    let (baked, scene, scene_path) =
+        load_bake(&args.input, args.patches, &args.device, args.scene.clone())?;
     let config = camera_lights(args.camera_lights.clone(), &scene_path)?;
     let options = RuntimeOptions {
         samples: args.samples,
@@ -850,6 +878,131 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
     }
     eprintln!("{summary}; exposure {exposure:.4}");
     println!("{}", args.output.display());
+    Ok(())
+}
+
+/// The bake of `input` (a .rad, or a scene baked first or taken from the
+/// cache) and its scene, checked to be the one it was baked from.
+fn load_bake(
+    input: &Path,
+    patches: usize,
+    device: &DeviceArgs,
+    scene_given: Option<PathBuf>,
+) -> anyhow::Result<(
+    radiosity::bakefile::baked::Baked,
+    radiosity::core::scene::Scene,
+    PathBuf,
+)> {
+    use radiosity::bakefile::baked::{resolve_scene_path, Baked};
+    let rad = bake_for(input, patches, device)?;
+    let baked = Baked::load(&rad)?;
+    let scene_path = scene_given.unwrap_or_else(|| resolve_scene_path(&rad, &baked.info.scene));
+    let scene = scene::load(&scene_path).with_context(|| {
+        format!(
+            "loading the scene {} (give it with --scene)",
+            scene_path.display()
+        )
+    })?;
+    let hash = bakefile::SceneHash::of_scene(&scene)?;
+    let diff = baked.scene_hash.differences(&hash);
+    if !diff.is_empty() {
+        bail!(
+            "{} was baked from a different scene than {} ({} changed): bake it again",
+            rad.display(),
+            scene_path.display(),
+            diff.join(", ")
+        );
+    }
+    Ok((baked, scene, scene_path))
+}
+
+/// `radiosity view`.
+fn view(args: ViewArgs) -> anyhow::Result<()> {
+    use radiosity::runtime::{Runtime, RuntimeOptions};
+    use radiosity::viewer::{self, ViewerConfig};
+    if !(1..=16).contains(&args.samples) {
+        bail!("--samples {}: expected 1..=16", args.samples);
+    }
+    if !(16..=radiosity::gl::shadow::MAX_RESOLUTION).contains(&args.shadow_resolution) {
+        bail!(
+            "--shadow-resolution {}: expected 16..={}",
+            args.shadow_resolution,
+            radiosity::gl::shadow::MAX_RESOLUTION
+        );
+    }
+    if !(1..=16384).contains(&args.width) || !(1..=16384).contains(&args.height) {
+        bail!(
+            "--width {} --height {}: expected 1..=16384 each",
+            args.width,
+            args.height
+        );
+    }
+    if args.frames == Some(0) {
+        bail!("--frames 0: expected at least 1");
+    }
+    if args.screenshot.is_some() && args.frames.is_none() {
+        bail!("--screenshot needs --frames N (P or F12 saves screenshots interactively)");
+    }
+    let (baked, scene, scene_path) =
+        load_bake(&args.input, args.patches, &args.device, args.scene.clone())?;
+    let config_path = args
+        .camera_lights
+        .clone()
+        .unwrap_or_else(|| scene_path.with_extension("json"));
+    let config = camera_lights(Some(config_path.clone()), &scene_path)?;
+    let title = format!(
+        "radiosity: {}",
+        scene_path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    );
+    let rt = Runtime::new(
+        baked,
+        scene,
+        RuntimeOptions {
+            samples: args.samples,
+            ..RuntimeOptions::default()
+        },
+    );
+    let report = viewer::run(
+        rt,
+        ViewerConfig {
+            config,
+            save_to: args.save_to.clone().unwrap_or(config_path),
+            width: args.width,
+            height: args.height,
+            frames: args.frames,
+            screenshot: args.screenshot.clone(),
+            gl: radiosity::gl::renderer::GlOptions {
+                shadow_resolution: args.shadow_resolution,
+                samples: args.samples,
+                ..Default::default()
+            },
+            exposure: args.exposure,
+            title,
+        },
+    )
+    .map_err(|e| match e {
+        viewer::ViewerError::NoDisplay(why) => anyhow::anyhow!(
+            "no display to open a window on ({why}); `radiosity render --backend gl` draws the same view headless to a PNG"
+        ),
+        e => anyhow::Error::new(e).context("the viewer"),
+    })?;
+    let passes: Vec<String> = radiosity::gl::renderer::PASSES
+        .iter()
+        .zip(report.pass_ms)
+        .filter_map(|(n, t)| t.map(|ms| format!("{n} {ms:.2} ms")))
+        .collect();
+    eprintln!(
+        "{} frames in {:.2} s; last GPU times: {}",
+        report.frames,
+        report.seconds,
+        passes.join(", ")
+    );
+    for p in &report.screenshots {
+        println!("{}", p.display());
+    }
     Ok(())
 }
 

@@ -14,6 +14,7 @@ pub mod scene;
 pub mod shade;
 pub mod shadow;
 pub mod surface;
+pub mod tonemap;
 
 use glow::HasContext;
 

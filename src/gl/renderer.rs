@@ -390,6 +390,16 @@ impl GlRenderer {
         Ok(self.shade.read(gl))
     }
 
+    /// The last drawn image's radiance texture and size.
+    pub fn radiance_texture(&self) -> Option<(glow::Texture, (usize, usize))> {
+        self.shade.color.map(|t| (t, self.shade.size()))
+    }
+
+    /// The last drawn image read back (blocking).
+    pub fn read_image(&self, gl: &glow::Context) -> Image {
+        self.shade.read(gl)
+    }
+
     /// The latest GPU time of each pass (milliseconds), in [`PASSES`]
     /// order; `wait` blocks until every query issued is done.
     pub fn pass_times(&mut self, gl: &glow::Context, wait: bool) -> [Option<f64>; 4] {

@@ -34,7 +34,8 @@ pub struct MaterialConstants {
 pub struct Shade {
     pub program: glow::Program,
     framebuffer: glow::Framebuffer,
-    color: Option<glow::Renderbuffer>,
+    /// The RGBA32F radiance texture (sampled by the tone-mapping pass).
+    pub color: Option<glow::Texture>,
     depth: Option<glow::Renderbuffer>,
     size: (usize, usize),
 }
@@ -120,6 +121,11 @@ impl Shade {
         })
     }
 
+    /// The render target's size.
+    pub fn size(&self) -> (usize, usize) {
+        self.size
+    }
+
     /// Makes the render target `width × height`.
     fn target(&mut self, gl: &glow::Context, width: usize, height: usize) -> Result<(), GlError> {
         if self.size == (width, height) {
@@ -134,17 +140,24 @@ impl Shade {
                     "an image of {width} x {height} pixels: this GL renders up to {max} a side"
                 )));
             }
-            for rb in [self.color.take(), self.depth.take()].into_iter().flatten() {
+            if let Some(t) = self.color.take() {
+                gl.delete_texture(t);
+            }
+            if let Some(rb) = self.depth.take() {
                 gl.delete_renderbuffer(rb);
             }
-            let color = gl.create_renderbuffer().map_err(GlError::Call)?;
-            gl.bind_renderbuffer(glow::RENDERBUFFER, Some(color));
-            gl.renderbuffer_storage(
-                glow::RENDERBUFFER,
+            let color = gl.create_texture().map_err(GlError::Call)?;
+            gl.bind_texture(glow::TEXTURE_2D, Some(color));
+            gl.tex_storage_2d(
+                glow::TEXTURE_2D,
+                1,
                 glow::RGBA32F,
                 width as i32,
                 height as i32,
             );
+            let nearest = glow::NEAREST as i32;
+            gl.tex_parameter_i32(glow::TEXTURE_2D, glow::TEXTURE_MIN_FILTER, nearest);
+            gl.tex_parameter_i32(glow::TEXTURE_2D, glow::TEXTURE_MAG_FILTER, nearest);
             let depth = gl.create_renderbuffer().map_err(GlError::Call)?;
             gl.bind_renderbuffer(glow::RENDERBUFFER, Some(depth));
             gl.renderbuffer_storage(
@@ -154,11 +167,12 @@ impl Shade {
                 height as i32,
             );
             gl.bind_framebuffer(glow::FRAMEBUFFER, Some(self.framebuffer));
-            gl.framebuffer_renderbuffer(
+            gl.framebuffer_texture_2d(
                 glow::FRAMEBUFFER,
                 glow::COLOR_ATTACHMENT0,
-                glow::RENDERBUFFER,
+                glow::TEXTURE_2D,
                 Some(color),
+                0,
             );
             gl.framebuffer_renderbuffer(
                 glow::FRAMEBUFFER,
@@ -261,6 +275,8 @@ impl Shade {
     /// first, and the covered flags.
     pub fn read(&self, gl: &glow::Context) -> Image {
         let (w, h) = self.size;
+        // SAFETY: makes the draw's writes visible to the read.
+        unsafe { gl.memory_barrier(glow::FRAMEBUFFER_BARRIER_BIT) };
         let mut bytes = vec![0u8; 16 * w * h];
         // SAFETY: a read of w × h RGBA f32 pixels of the bound target.
         unsafe {
@@ -304,7 +320,10 @@ impl Shade {
         unsafe {
             gl.delete_program(self.program);
             gl.delete_framebuffer(self.framebuffer);
-            for rb in [self.color, self.depth].into_iter().flatten() {
+            if let Some(t) = self.color {
+                gl.delete_texture(t);
+            }
+            if let Some(rb) = self.depth {
                 gl.delete_renderbuffer(rb);
             }
         }

@@ -1,0 +1,478 @@
+//! The viewer: a window in which the user moves the camera and the lights
+//! and watches indirect light follow (issue 12). A `winit` window with a GL
+//! 4.5 core context (glutin, EGL on X11), the GL run time
+//! ([`crate::gl::renderer::GlRenderer`]) drawing each frame and the
+//! tone-mapping pass ([`crate::gl::tonemap`]) putting it on screen. The
+//! keys and mouse act through [`controls`], which is tested without a
+//! window; the window itself is tested under Xvfb (tests/viewer.rs) with
+//! `--frames N --screenshot FILE`.
+//!
+//! Per-pass GPU times (timestamp queries, read when ready) and frames per
+//! second are shown in the title bar. Without a display the viewer says so
+//! and points to `radiosity render`, which draws the same images headless.
+
+pub mod controls;
+
+use crate::core::scene_config::SceneConfig;
+use crate::gl::renderer::{GlOptions, GlRenderer, PASSES};
+use crate::gl::tonemap::Tonemap;
+use crate::gl::GlError;
+use crate::runtime::render::View;
+use crate::runtime::Runtime;
+use controls::{CameraRig, Edit, LightRig};
+use glam::Vec3;
+use glutin::config::{ConfigTemplateBuilder, GlConfig};
+use glutin::context::{
+    ContextApi, ContextAttributesBuilder, GlProfile, NotCurrentGlContext, PossiblyCurrentContext,
+    Version,
+};
+use glutin::display::{GetGlDisplay, GlDisplay};
+use glutin::surface::{GlSurface, Surface, SwapInterval, WindowSurface};
+use glutin_winit::{DisplayBuilder, GlWindow};
+use std::ffi::CString;
+use std::num::NonZeroU32;
+use std::path::PathBuf;
+use std::time::Instant;
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, EventLoop};
+use winit::keyboard::{KeyCode, ModifiersState, PhysicalKey};
+use winit::raw_window_handle::HasWindowHandle;
+use winit::window::{Window, WindowId};
+
+/// What the viewer shows and where it saves.
+pub struct ViewerConfig {
+    pub config: SceneConfig,
+    /// Where S (with Ctrl) or F5 saves the camera and lights.
+    pub save_to: PathBuf,
+    pub width: u32,
+    pub height: u32,
+    /// Render this many frames, then save `screenshot` and exit.
+    pub frames: Option<u64>,
+    pub screenshot: Option<PathBuf>,
+    pub gl: GlOptions,
+    /// Fixed exposure (default: automatic from the first frame; E redoes
+    /// it).
+    pub exposure: Option<f32>,
+    pub title: String,
+}
+
+/// Errors of the viewer.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewerError {
+    /// No display to open a window on.
+    #[error("no display: {0}")]
+    NoDisplay(String),
+    /// The window or its GL context could not be made.
+    #[error("window: {0}")]
+    Window(String),
+    #[error(transparent)]
+    Gl(#[from] GlError),
+    /// A screenshot or the camera/lights file could not be written.
+    #[error("{0}")]
+    Save(String),
+}
+
+/// What a run did.
+#[derive(Clone, Debug, Default)]
+pub struct ViewerReport {
+    pub frames: u64,
+    pub seconds: f64,
+    pub screenshots: Vec<PathBuf>,
+    /// The last GPU time of each pass, milliseconds ([`PASSES`] order).
+    pub pass_ms: [Option<f64>; 4],
+}
+
+/// The keys, printed at start and with H.
+pub const HELP: &str = "\
+mouse: left drag orbits, right drag looks around, wheel zooms
+W A S D Q E: fly (forward, left, back, right, down, up)
+1 2 3 4: final, direct, indirect, patches
+Tab: next light; arrows, PageUp/PageDown: move it; I J K L: turn it
++ -: brighter, dimmer; [ ]: narrower, wider cone; C: colour
+N: add a point light here; B: add a spot light looking ahead; Delete: remove
+M: emissive materials off / on; X: automatic exposure again
+P or F12: screenshot; F5 or Ctrl+S: save camera and lights; H: help; Esc: quit";
+
+struct State {
+    // Field order is drop order: GL objects go before the context.
+    renderer: GlRenderer,
+    tonemap: Tonemap,
+    gl: glow::Context,
+    surface: Surface<WindowSurface>,
+    context: PossiblyCurrentContext,
+    window: Window,
+}
+
+struct App {
+    rt: Runtime,
+    cfg: ViewerConfig,
+    camera: CameraRig,
+    lights: LightRig,
+    view: View,
+    exposure: Option<f32>,
+    state: Option<State>,
+    error: Option<ViewerError>,
+    report: ViewerReport,
+    start: Instant,
+    fps_frames: u64,
+    fps_start: Instant,
+    fps: f64,
+    modifiers: ModifiersState,
+    drag: Option<MouseButton>,
+    cursor: Option<(f64, f64)>,
+    screenshot_due: bool,
+}
+
+/// Opens the window and runs until it is closed (or `frames` are drawn).
+pub fn run(rt: Runtime, cfg: ViewerConfig) -> Result<ViewerReport, ViewerError> {
+    let has_display = ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()));
+    if !has_display {
+        return Err(ViewerError::NoDisplay(
+            "DISPLAY is not set (no X server; Wayland desktops provide one through XWayland)"
+                .into(),
+        ));
+    }
+    let event_loop = EventLoop::new().map_err(|e| ViewerError::NoDisplay(e.to_string()))?;
+    let (lo, hi) = rt.scene.bounds();
+    let diagonal = Vec3::from(lo).distance(Vec3::from(hi));
+    let emissive = rt
+        .scene
+        .materials
+        .iter()
+        .filter(|m| m.emission.iter().any(|&e| e > 0.0))
+        .map(|m| m.name.clone())
+        .collect();
+    let mut app = App {
+        camera: CameraRig::new(&cfg.config.camera),
+        lights: LightRig::new(&cfg.config, diagonal, emissive),
+        view: View::Final,
+        exposure: cfg.exposure,
+        rt,
+        cfg,
+        state: None,
+        error: None,
+        report: ViewerReport::default(),
+        start: Instant::now(),
+        fps_frames: 0,
+        fps_start: Instant::now(),
+        fps: 0.0,
+        modifiers: ModifiersState::empty(),
+        drag: None,
+        cursor: None,
+        screenshot_due: false,
+    };
+    if app.cfg.frames.is_none() {
+        eprintln!("{HELP}");
+    }
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| ViewerError::Window(e.to_string()))?;
+    if let Some(state) = app.state.take() {
+        let State {
+            renderer,
+            tonemap,
+            gl,
+            ..
+        } = state;
+        renderer.delete(&gl);
+        tonemap.delete(&gl);
+    }
+    if let Some(e) = app.error {
+        return Err(e);
+    }
+    app.report.seconds = app.start.elapsed().as_secs_f64();
+    Ok(app.report)
+}
+
+impl App {
+    fn create(&mut self, el: &ActiveEventLoop) -> Result<State, ViewerError> {
+        let attributes = Window::default_attributes()
+            .with_title(self.cfg.title.clone())
+            .with_inner_size(PhysicalSize::new(self.cfg.width, self.cfg.height));
+        let template = ConfigTemplateBuilder::new();
+        let (window, config) = DisplayBuilder::new()
+            .with_window_attributes(Some(attributes))
+            .build(el, template, |configs| {
+                configs
+                    .max_by_key(|c| c.num_samples() == 0)
+                    .expect("the display lists at least one configuration")
+            })
+            .map_err(|e| ViewerError::Window(format!("no GL configuration for a window: {e}")))?;
+        let window = window.ok_or_else(|| ViewerError::Window("no window was made".into()))?;
+        let raw = window.window_handle().ok().map(|h| h.as_raw());
+        let display = config.display();
+        let attributes = ContextAttributesBuilder::new()
+            .with_context_api(ContextApi::OpenGl(Some(Version::new(4, 5))))
+            .with_profile(GlProfile::Core)
+            .build(raw);
+        // SAFETY: the config comes from this display; the window outlives
+        // the context (both are held by State, the window dropped last).
+        let context = unsafe { display.create_context(&config, &attributes) }
+            .map_err(|e| ViewerError::Window(format!("a GL 4.5 core context: {e}")))?;
+        let surface_attributes = window
+            .build_surface_attributes(Default::default())
+            .map_err(|e| ViewerError::Window(e.to_string()))?;
+        // SAFETY: as above.
+        let surface = unsafe { display.create_window_surface(&config, &surface_attributes) }
+            .map_err(|e| ViewerError::Window(format!("a window surface: {e}")))?;
+        let context = context
+            .make_current(&surface)
+            .map_err(|e| ViewerError::Window(format!("making the context current: {e}")))?;
+        // Frames as fast as they come when scripted; synchronised to the
+        // display otherwise (failure to set it is harmless).
+        let interval = if self.cfg.frames.is_some() {
+            SwapInterval::DontWait
+        } else {
+            SwapInterval::Wait(NonZeroU32::MIN)
+        };
+        let _ = surface.set_swap_interval(&context, interval);
+        // SAFETY: the context is current on this thread and outlives `gl`.
+        let gl = unsafe {
+            glow::Context::from_loader_function(|s| {
+                let s = CString::new(s).expect("GL symbol names have no NUL");
+                display.get_proc_address(&s)
+            })
+        };
+        let renderer = GlRenderer::new(&gl, &self.rt, self.cfg.gl)?;
+        let tonemap = Tonemap::new(&gl)?;
+        Ok(State {
+            renderer,
+            tonemap,
+            gl,
+            surface,
+            context,
+            window,
+        })
+    }
+
+    fn draw(&mut self) -> Result<(), ViewerError> {
+        let Some(state) = self.state.as_mut() else {
+            return Ok(());
+        };
+        let size = state.window.inner_size();
+        let (w, h) = (size.width.max(1) as usize, size.height.max(1) as usize);
+        let gl = &state.gl;
+        state
+            .renderer
+            .frame(gl, &self.lights.lights, &self.lights.emission)?;
+        let camera = self.camera.camera();
+        state
+            .renderer
+            .draw(gl, &camera, self.view, (w, h), &self.lights.emission)?;
+        let exposure = match self.exposure {
+            Some(k) => k,
+            None => {
+                let img = state.renderer.read_image(gl);
+                let (_, k) = img.to_srgb8(None);
+                self.exposure = Some(k);
+                k
+            }
+        };
+        let (texture, tsize) = state.renderer.radiance_texture().expect("drawn just above");
+        state.tonemap.draw(gl, texture, tsize, exposure, None);
+        state
+            .surface
+            .swap_buffers(&state.context)
+            .map_err(|e| ViewerError::Window(format!("presenting the frame: {e}")))?;
+        self.report.frames += 1;
+        self.fps_frames += 1;
+        let since = self.fps_start.elapsed().as_secs_f64();
+        if since > 0.5 {
+            self.fps = self.fps_frames as f64 / since;
+            self.fps_frames = 0;
+            self.fps_start = Instant::now();
+            let times = state.renderer.pass_times(gl, false);
+            self.report.pass_ms = times;
+            let passes: Vec<String> = PASSES
+                .iter()
+                .zip(times)
+                .filter_map(|(n, t)| t.map(|ms| format!("{n} {ms:.1} ms")))
+                .collect();
+            state.window.set_title(&format!(
+                "{} | {:?} | {:.1} fps | GPU: {} | {} | H: help",
+                self.cfg.title,
+                self.view,
+                self.fps,
+                passes.join(", "),
+                self.lights.describe()
+            ));
+        }
+        if self.screenshot_due {
+            self.screenshot_due = false;
+            self.save_screenshot(None)?;
+        }
+        Ok(())
+    }
+
+    fn save_screenshot(&mut self, path: Option<PathBuf>) -> Result<(), ViewerError> {
+        let Some(state) = self.state.as_ref() else {
+            return Ok(());
+        };
+        let path =
+            path.unwrap_or_else(|| PathBuf::from(format!("screenshot-{}.png", self.report.frames)));
+        let img = state.renderer.read_image(&state.gl);
+        let (pixels, _) = img.to_srgb8(self.exposure);
+        let png = image::RgbImage::from_raw(img.width as u32, img.height as u32, pixels)
+            .ok_or_else(|| ViewerError::Save("screenshot size".into()))?;
+        png.save(&path)
+            .map_err(|e| ViewerError::Save(format!("writing {}: {e}", path.display())))?;
+        eprintln!("screenshot: {}", path.display());
+        self.report.screenshots.push(path);
+        Ok(())
+    }
+
+    fn save_config(&self) -> Result<(), ViewerError> {
+        let c = SceneConfig {
+            camera: self.camera.camera(),
+            lights: self.lights.lights.clone(),
+            emission: self.lights.emission.clone(),
+            ..self.cfg.config.clone()
+        };
+        c.save(&self.cfg.save_to)
+            .map_err(|e| ViewerError::Save(e.to_string()))?;
+        eprintln!(
+            "saved the camera and lights to {}",
+            self.cfg.save_to.display()
+        );
+        Ok(())
+    }
+
+    fn key(&mut self, el: &ActiveEventLoop, code: KeyCode) -> Result<(), ViewerError> {
+        let step = self.lights.step;
+        let cam = self.camera.clone();
+        let turn = 5f32.to_radians();
+        let edit = |e: Edit, s: &mut App| s.lights.apply(e, &cam);
+        match code {
+            KeyCode::Escape => el.exit(),
+            KeyCode::Digit1 => self.view = View::Final,
+            KeyCode::Digit2 => self.view = View::Direct,
+            KeyCode::Digit3 => self.view = View::Indirect,
+            KeyCode::Digit4 => self.view = View::Patches,
+            KeyCode::KeyW => self.camera.fly(Vec3::Z, step),
+            KeyCode::KeyS if self.modifiers.control_key() => self.save_config()?,
+            KeyCode::KeyS => self.camera.fly(Vec3::NEG_Z, step),
+            KeyCode::KeyA => self.camera.fly(Vec3::NEG_X, step),
+            KeyCode::KeyD => self.camera.fly(Vec3::X, step),
+            KeyCode::KeyQ => self.camera.fly(Vec3::NEG_Y, step),
+            KeyCode::KeyE => self.camera.fly(Vec3::Y, step),
+            KeyCode::Tab => self.lights.select_next(),
+            KeyCode::ArrowLeft => edit(Edit::Move(Vec3::NEG_X), self),
+            KeyCode::ArrowRight => edit(Edit::Move(Vec3::X), self),
+            KeyCode::ArrowUp => edit(Edit::Move(Vec3::Z), self),
+            KeyCode::ArrowDown => edit(Edit::Move(Vec3::NEG_Z), self),
+            KeyCode::PageUp => edit(Edit::Move(Vec3::Y), self),
+            KeyCode::PageDown => edit(Edit::Move(Vec3::NEG_Y), self),
+            KeyCode::KeyJ => edit(Edit::Turn(turn, 0.0), self),
+            KeyCode::KeyL => edit(Edit::Turn(-turn, 0.0), self),
+            KeyCode::KeyI => edit(Edit::Turn(0.0, turn), self),
+            KeyCode::KeyK => edit(Edit::Turn(0.0, -turn), self),
+            KeyCode::Equal | KeyCode::NumpadAdd => edit(Edit::Scale(1.25), self),
+            KeyCode::Minus | KeyCode::NumpadSubtract => edit(Edit::Scale(0.8), self),
+            KeyCode::BracketLeft => edit(Edit::Cone(-2.0), self),
+            KeyCode::BracketRight => edit(Edit::Cone(2.0), self),
+            KeyCode::KeyC => edit(Edit::Colour, self),
+            KeyCode::KeyN => edit(Edit::AddPoint, self),
+            KeyCode::KeyB => edit(Edit::AddSpot, self),
+            KeyCode::Delete | KeyCode::Backspace => edit(Edit::Remove, self),
+            KeyCode::KeyM => edit(Edit::ToggleEmission, self),
+            KeyCode::KeyX => self.exposure = None,
+            KeyCode::KeyP | KeyCode::F12 => self.screenshot_due = true,
+            KeyCode::F5 => self.save_config()?,
+            KeyCode::KeyH => eprintln!("{HELP}"),
+            _ => {}
+        }
+        Ok(())
+    }
+
+    fn fail(&mut self, el: &ActiveEventLoop, e: ViewerError) {
+        self.error = Some(e);
+        el.exit();
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, el: &ActiveEventLoop) {
+        if self.state.is_some() {
+            return;
+        }
+        match self.create(el) {
+            Ok(s) => {
+                s.window.request_redraw();
+                self.state = Some(s);
+            }
+            Err(e) => self.fail(el, e),
+        }
+    }
+
+    fn window_event(&mut self, el: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        match event {
+            WindowEvent::CloseRequested => el.exit(),
+            WindowEvent::Resized(size) => {
+                if let Some(s) = &self.state {
+                    s.window.resize_surface(&s.surface, &s.context);
+                    let _ = size;
+                }
+            }
+            WindowEvent::ModifiersChanged(m) => self.modifiers = m.state(),
+            WindowEvent::KeyboardInput { event, .. } => {
+                if event.state == ElementState::Pressed {
+                    if let PhysicalKey::Code(code) = event.physical_key {
+                        if let Err(e) = self.key(el, code) {
+                            eprintln!("{e}");
+                        }
+                    }
+                }
+            }
+            WindowEvent::MouseInput { state, button, .. } => {
+                self.drag = (state == ElementState::Pressed).then_some(button);
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                if let (Some(button), Some((x0, y0))) = (self.drag, self.cursor) {
+                    let k = 0.005;
+                    let (dx, dy) = ((position.x - x0) as f32 * k, (position.y - y0) as f32 * k);
+                    match button {
+                        MouseButton::Left => self.camera.orbit(dx, dy),
+                        _ => self.camera.look(dx, dy),
+                    }
+                }
+                self.cursor = Some((position.x, position.y));
+            }
+            WindowEvent::MouseWheel { delta, .. } => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y,
+                    MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
+                };
+                self.camera.zoom(0.9f32.powf(lines));
+            }
+            WindowEvent::RedrawRequested => {
+                if let Err(e) = self.draw() {
+                    self.fail(el, e);
+                    return;
+                }
+                if let Some(n) = self.cfg.frames {
+                    if self.report.frames >= n {
+                        let path = self.cfg.screenshot.clone();
+                        if let Some(p) = path {
+                            if let Err(e) = self.save_screenshot(Some(p)) {
+                                self.fail(el, e);
+                                return;
+                            }
+                        }
+                        el.exit();
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, _el: &ActiveEventLoop) {
+        if let Some(s) = &self.state {
+            s.window.request_redraw();
+        }
+    }
+}
