@@ -302,6 +302,10 @@ struct ViewArgs {
     /// Exposure (default: automatic from the first frame).
     #[arg(long)]
     exposure: Option<f32>,
+    /// Where there is no display: render the starting view headless to
+    /// this PNG instead (GL through EGL, else the CPU) and print its path.
+    #[arg(long, value_name = "FILE.png")]
+    headless_to: Option<PathBuf>,
     /// Shadow map side in texels.
     #[arg(long, default_value_t = 2048)]
     shadow_resolution: usize,
@@ -740,8 +744,7 @@ fn camera_lights(given: Option<PathBuf>, scene: &Path) -> anyhow::Result<SceneCo
 
 /// `radiosity render`.
 fn render(args: RenderArgs) -> anyhow::Result<()> {
-    use radiosity::runtime::render::{render, View};
-    use radiosity::runtime::texture::Albedo;
+    use radiosity::runtime::render::View;
     use radiosity::runtime::{Runtime, RuntimeOptions};
     let view = View::parse(&args.view).with_context(|| {
         format!(
@@ -780,98 +783,16 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
         samples: args.samples,
         ..RuntimeOptions::default()
     };
-    // GL: a headless context, or (auto) the CPU when none can be made.
-    let context = match args.backend.as_str() {
-        "gl" => Some(radiosity::gl::context::Headless::new().context(
-            "--backend gl needs an OpenGL 4.5 context through EGL (scripts/setup installs Mesa)",
-        )?),
-        "auto" => match radiosity::gl::context::Headless::new() {
-            Ok(c) => Some(c),
-            Err(e) => {
-                eprintln!("no OpenGL context ({e}): rendering on the CPU");
-                None
-            }
-        },
-        _ => None,
-    };
     let mut rt = Runtime::new(baked, scene, options);
-    let (img, summary) = match &context {
-        Some(ctx) => {
-            let gl = &ctx.gl;
-            let mut r = radiosity::gl::renderer::GlRenderer::new(
-                gl,
-                &rt,
-                radiosity::gl::renderer::GlOptions {
-                    shadow_resolution: args.shadow_resolution,
-                    samples: args.samples,
-                    ..Default::default()
-                },
-            )
-            .context("preparing the GL renderer")?;
-            let start = std::time::Instant::now();
-            let fs = r.frame(gl, &config.lights, &config.emission)?;
-            let img = r.render(
-                gl,
-                &config.camera,
-                view,
-                (args.width, args.height),
-                &config.emission,
-            )?;
-            let wall = start.elapsed().as_secs_f64();
-            let times = r.pass_times(gl, true);
-            let passes: Vec<String> = radiosity::gl::renderer::PASSES
-                .iter()
-                .zip(times)
-                .map(|(name, t)| match t {
-                    Some(ms) => format!("{name} {ms:.2} ms"),
-                    None => format!("{name} (no timer)"),
-                })
-                .collect();
-            let s = format!(
-                "gl ({}, {}): {} patches, {} light(s), {} shadow views; GPU {}; frame and image {}x{} in {wall:.3} s with read-back",
-                ctx.device,
-                ctx.renderer(),
-                rt.n(),
-                fs.lights,
-                fs.views,
-                passes.join(", "),
-                args.width,
-                args.height
-            );
-            r.delete(gl);
-            (img, s)
-        }
-        None => {
-            let albedo = Albedo::new(&rt.scene);
-            let fs = rt.frame(&config.lights, &config.emission);
-            let (img, rs) = render(&rt, &config, view, args.width, args.height, &albedo);
-            let s = format!(
-                "cpu: {} patches, direct {:.3} s, gather {:.3} s ({} bytes read, {:.1} % of column groups active); image {}×{} in {:.3} s ({} back-facing pixels, {} through a nearest piece, {} unmapped)",
-                rt.n(),
-                fs.seconds_direct,
-                fs.seconds_gather,
-                fs.gather.bytes_read,
-                100.0 * fs.active_groups as f64 / fs.total_groups.max(1) as f64,
-                img.width,
-                img.height,
-                rs.seconds,
-                rs.back_faces,
-                rs.nearest_piece,
-                rs.unmapped
-            );
-            (img, s)
-        }
-    };
-    let (pixels, exposure) = img.to_srgb8(args.exposure);
-    let png = image::RgbImage::from_raw(args.width as u32, args.height as u32, pixels)
-        .context("image size")?;
-    let mut bytes = Vec::new();
-    png.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
+    let (img, summary) = draw_headless(
+        &mut rt,
+        &config,
+        view,
+        (args.width, args.height),
+        &args.backend,
+        args.shadow_resolution,
     )?;
-    write_atomic(&args.output, &bytes, None)
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    let exposure = write_png(&args.output, &img, args.exposure)?;
     if let Some(hdr) = &args.hdr {
         radiosity::runtime::tonemap::write_pfm(hdr, img.width, img.height, &img.radiance)
             .with_context(|| format!("writing {}", hdr.display()))?;
@@ -914,6 +835,120 @@ fn load_bake(
         );
     }
     Ok((baked, scene, scene_path))
+}
+
+/// Lights `rt` with `config` and draws `view` headless: on GL through EGL
+/// (`backend` "gl", or "auto" when a context can be made) or on the CPU.
+/// Returns the image and a one-line summary of what was done.
+fn draw_headless(
+    rt: &mut radiosity::runtime::Runtime,
+    config: &SceneConfig,
+    view: radiosity::runtime::render::View,
+    (width, height): (usize, usize),
+    backend: &str,
+    shadow_resolution: usize,
+) -> anyhow::Result<(radiosity::runtime::render::Image, String)> {
+    use radiosity::runtime::render::render;
+    use radiosity::runtime::texture::Albedo;
+    // GL: a headless context, or (auto) the CPU when none can be made.
+    let context = match backend {
+        "gl" => Some(radiosity::gl::context::Headless::new().context(
+            "--backend gl needs an OpenGL 4.5 context through EGL (scripts/setup installs Mesa)",
+        )?),
+        "auto" => match radiosity::gl::context::Headless::new() {
+            Ok(c) => Some(c),
+            Err(e) => {
+                eprintln!("no OpenGL context ({e}): rendering on the CPU");
+                None
+            }
+        },
+        _ => None,
+    };
+    let out = match &context {
+        Some(ctx) => {
+            let gl = &ctx.gl;
+            let mut r = radiosity::gl::renderer::GlRenderer::new(
+                gl,
+                rt,
+                radiosity::gl::renderer::GlOptions {
+                    shadow_resolution,
+                    samples: rt.options.samples,
+                    ..Default::default()
+                },
+            )
+            .context("preparing the GL renderer")?;
+            let start = std::time::Instant::now();
+            let fs = r.frame(gl, &config.lights, &config.emission)?;
+            let img = r.render(gl, &config.camera, view, (width, height), &config.emission)?;
+            let wall = start.elapsed().as_secs_f64();
+            let times = r.pass_times(gl, true);
+            let passes: Vec<String> = radiosity::gl::renderer::PASSES
+                .iter()
+                .zip(times)
+                .map(|(name, t)| match t {
+                    Some(ms) => format!("{name} {ms:.2} ms"),
+                    None => format!("{name} (no timer)"),
+                })
+                .collect();
+            let s = format!(
+                "gl ({}, {}): {} patches, {} light(s), {} shadow views; GPU {}; frame and image {}x{} in {wall:.3} s with read-back",
+                ctx.device,
+                ctx.renderer(),
+                rt.n(),
+                fs.lights,
+                fs.views,
+                passes.join(", "),
+                width,
+                height
+            );
+            r.delete(gl);
+            (img, s)
+        }
+        None => {
+            let albedo = Albedo::new(&rt.scene);
+            let fs = rt.frame(&config.lights, &config.emission);
+            let (img, rs) = render(rt, config, view, width, height, &albedo);
+            let s = format!(
+                "cpu: {} patches, direct {:.3} s, gather {:.3} s ({} bytes read, {:.1} % of column groups active); image {}×{} in {:.3} s ({} back-facing pixels, {} through a nearest piece, {} unmapped)",
+                rt.n(),
+                fs.seconds_direct,
+                fs.seconds_gather,
+                fs.gather.bytes_read,
+                100.0 * fs.active_groups as f64 / fs.total_groups.max(1) as f64,
+                img.width,
+                img.height,
+                rs.seconds,
+                rs.back_faces,
+                rs.nearest_piece,
+                rs.unmapped
+            );
+            (img, s)
+        }
+    };
+    Ok(out)
+}
+
+/// Writes `img` as an 8-bit sRGB PNG with `exposure` (automatic when
+/// `None`); returns the exposure used.
+fn write_png(
+    path: &Path,
+    img: &radiosity::runtime::render::Image,
+    exposure: Option<f32>,
+) -> anyhow::Result<f32> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("creating the output directory {}", dir.display()))?;
+    }
+    let (pixels, exposure) = img.to_srgb8(exposure);
+    let png = image::RgbImage::from_raw(img.width as u32, img.height as u32, pixels)
+        .context("image size")?;
+    let mut bytes = Vec::new();
+    png.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )?;
+    write_atomic(path, &bytes, None).with_context(|| format!("writing {}", path.display()))?;
+    Ok(exposure)
 }
 
 /// `radiosity view`.
@@ -965,6 +1000,27 @@ fn view(args: ViewArgs) -> anyhow::Result<()> {
             ..RuntimeOptions::default()
         },
     );
+    if !viewer::has_display() {
+        if let Some(png) = &args.headless_to {
+            let mut rt = rt;
+            eprintln!(
+                "no display (DISPLAY is not set): rendering the starting view headless instead"
+            );
+            let (w, h) = (args.width as usize, args.height as usize);
+            let (img, summary) = draw_headless(
+                &mut rt,
+                &config,
+                radiosity::runtime::render::View::Final,
+                (w, h),
+                "auto",
+                args.shadow_resolution,
+            )?;
+            let exposure = write_png(png, &img, args.exposure)?;
+            eprintln!("{summary}; exposure {exposure:.4}");
+            println!("{}", png.display());
+            return Ok(());
+        }
+    }
     let report = viewer::run(
         rt,
         ViewerConfig {
@@ -985,7 +1041,7 @@ fn view(args: ViewArgs) -> anyhow::Result<()> {
     )
     .map_err(|e| match e {
         viewer::ViewerError::NoDisplay(why) => anyhow::anyhow!(
-            "no display to open a window on ({why}); `radiosity render --backend gl` draws the same view headless to a PNG"
+            "no display to open a window on ({why}); `radiosity render --backend gl` (or `view --headless-to FILE.png`) draws the same view headless to a PNG"
         ),
         e => anyhow::Error::new(e).context("the viewer"),
     })?;

@@ -385,3 +385,67 @@ fn a_broken_shader_names_its_file_and_gives_the_drivers_log() {
     }
     assert!(err.to_string().contains("broken.frag"));
 }
+
+#[test]
+fn gl_tone_mapping_matches_the_cpus_within_one_step() {
+    use glow::HasContext;
+    let ctx = context();
+    let gl = &ctx.gl;
+    let (rt, config) = cornell("gl-tonemap");
+    let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).unwrap();
+    r.frame(gl, &config.lights, &config.emission).unwrap();
+    let (w, h) = (96, 72);
+    let img = r
+        .render(gl, &config.camera, View::Final, (w, h), &config.emission)
+        .unwrap();
+    let (cpu, k) = img.to_srgb8(None);
+    let tonemap = radiosity::gl::tonemap::Tonemap::new(gl).unwrap();
+    let (texture, size) = r.radiance_texture().unwrap();
+    assert_eq!(size, (w, h));
+    let mut bytes = vec![0u8; 4 * w * h];
+    // SAFETY: an RGBA8 target of w × h on the current context, read back
+    // whole.
+    unsafe {
+        let fbo = gl.create_framebuffer().unwrap();
+        let target = gl.create_texture().unwrap();
+        gl.bind_texture(glow::TEXTURE_2D, Some(target));
+        gl.tex_storage_2d(glow::TEXTURE_2D, 1, glow::RGBA8, w as i32, h as i32);
+        gl.bind_framebuffer(glow::FRAMEBUFFER, Some(fbo));
+        gl.framebuffer_texture_2d(
+            glow::FRAMEBUFFER,
+            glow::COLOR_ATTACHMENT0,
+            glow::TEXTURE_2D,
+            Some(target),
+            0,
+        );
+        tonemap.draw(gl, texture, size, k, Some(fbo));
+        gl.bind_framebuffer(glow::READ_FRAMEBUFFER, Some(fbo));
+        gl.read_pixels(
+            0,
+            0,
+            w as i32,
+            h as i32,
+            glow::RGBA,
+            glow::UNSIGNED_BYTE,
+            glow::PixelPackData::Slice(Some(&mut bytes)),
+        );
+        gl.bind_framebuffer(glow::FRAMEBUFFER, None);
+        gl.delete_framebuffer(fbo);
+        gl.delete_texture(target);
+    }
+    // f32 pow and exp differ between the shader and Rust in the last bits;
+    // the 8-bit target rounds to nearest as the CPU does: one step at most.
+    let mut worst = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let g = &bytes[4 * ((h - 1 - y) * w + x)..];
+            let c = &cpu[3 * (y * w + x)..];
+            for ch in 0..3 {
+                worst = worst.max((g[ch] as i32 - c[ch] as i32).abs());
+            }
+        }
+    }
+    assert!(worst <= 1, "GL tone mapping differs by {worst} / 255");
+    tonemap.delete(gl);
+    r.delete(gl);
+}

@@ -125,12 +125,16 @@ struct App {
     screenshot_due: bool,
 }
 
+/// Whether a display is named (`DISPLAY` or `WAYLAND_DISPLAY`).
+pub fn has_display() -> bool {
+    ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
+}
+
 /// Opens the window and runs until it is closed (or `frames` are drawn).
 pub fn run(rt: Runtime, cfg: ViewerConfig) -> Result<ViewerReport, ViewerError> {
-    let has_display = ["DISPLAY", "WAYLAND_DISPLAY"]
-        .iter()
-        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()));
-    if !has_display {
+    if !has_display() {
         return Err(ViewerError::NoDisplay(
             "DISPLAY is not set (no X server; Wayland desktops provide one through XWayland)"
                 .into(),
@@ -418,12 +422,10 @@ impl ApplicationHandler for App {
                 }
             }
             WindowEvent::ModifiersChanged(m) => self.modifiers = m.state(),
-            WindowEvent::KeyboardInput { event, .. } => {
-                if event.state == ElementState::Pressed {
-                    if let PhysicalKey::Code(code) = event.physical_key {
-                        if let Err(e) = self.key(el, code) {
-                            eprintln!("{e}");
-                        }
+            WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
+                if let PhysicalKey::Code(code) = event.physical_key {
+                    if let Err(e) = self.key(el, code) {
+                        eprintln!("{e}");
                     }
                 }
             }
