@@ -20,7 +20,7 @@ uniform vec3 eye;
 uniform bool two_sided;
 uniform uint front_triangles;
 uniform uint n;
-uniform int view_mode;    // 0 final, 1 direct, 2 indirect, 3 patches
+uniform int view_mode;    // 0 final, 1 direct, 2 indirect, 3 patches, 4 weights
 
 in vec3 v_position;
 in vec2 v_texcoord;
@@ -67,6 +67,20 @@ void main() {
     if (view_mode == 0) l = r * (dx + hx) + emitted;
     else if (view_mode == 1) l = r * dx + emitted;
     else if (view_mode == 2) l = r * hx;
+    else if (view_mode == 4) {
+        // runtime/render.rs patch_colour, blended by the weights.
+        l = vec3(0.0);
+        if (how != LOOKUP_UNMAPPED) {
+            for (int k = 0; k < 4; k++) {
+                if (ww[k] > 0.0) {
+                    uint hh = wp[k] * 2654435761u;
+                    vec3 col = 0.2 + 0.8 * vec3(float(hh & 255u), float((hh >> 8) & 255u),
+                                                float((hh >> 16) & 255u)) / 255.0;
+                    l += ww[k] * col;
+                }
+            }
+        }
+    }
     else {
         if (how == LOOKUP_UNMAPPED) l = vec3(0.0);
         else {

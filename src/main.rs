@@ -234,7 +234,8 @@ struct RenderArgs {
     /// The PNG to write.
     #[arg(short, long, value_name = "OUT.png")]
     output: PathBuf,
-    /// What to show: final, direct, indirect or patches (radiances).
+    /// What to show: final, direct, indirect or patches (radiances), or
+    /// weights (the surface map: each patch a colour, blended by weight).
     #[arg(long, default_value = "final")]
     view: String,
     /// The camera and lights (default: the scene's NAME.json beside it).
@@ -748,7 +749,7 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
     use radiosity::runtime::{Runtime, RuntimeOptions};
     let view = View::parse(&args.view).with_context(|| {
         format!(
-            "--view {:?}: expected final, direct, indirect or patches",
+            "--view {:?}: expected final, direct, indirect, patches or weights",
             args.view
         )
     })?;

@@ -184,7 +184,13 @@ fn gl_images_match_the_cpu_renderer_in_every_view() {
     rt.frame(&config.lights, &config.emission);
     let albedo = Albedo::new(&rt.scene);
     let (w, h) = (160, 120);
-    for view in [View::Final, View::Direct, View::Indirect, View::Patches] {
+    for view in [
+        View::Final,
+        View::Direct,
+        View::Indirect,
+        View::Patches,
+        View::Weights,
+    ] {
         let gpu = r
             .render(gl, &config.camera, view, (w, h), &config.emission)
             .unwrap();

@@ -248,6 +248,7 @@ impl Shade {
                     View::Direct => 1,
                     View::Indirect => 2,
                     View::Patches => 3,
+                    View::Weights => 4,
                 },
             );
             gl.uniform_1_i32(loc("albedo_texture").as_ref(), 0);

@@ -28,6 +28,16 @@ pub enum View {
     Direct,
     Indirect,
     Patches,
+    /// The surface map's weights: `Σ w_k c(p_k)` over the patches that
+    /// light the point, each patch its own colour [`patch_colour`].
+    Weights,
+}
+
+/// A patch's colour in the weights view (glsl/shade.frag mirrors it): the
+/// bytes of a multiplicative hash of its index, in [0.2, 1].
+pub fn patch_colour(p: u32) -> [f32; 3] {
+    let h = p.wrapping_mul(2_654_435_761);
+    [h & 255, (h >> 8) & 255, (h >> 16) & 255].map(|b| 0.2 + 0.8 * b as f32 / 255.0)
 }
 
 impl View {
@@ -37,6 +47,7 @@ impl View {
             "direct" => View::Direct,
             "indirect" => View::Indirect,
             "patches" => View::Patches,
+            "weights" => View::Weights,
             _ => return None,
         })
     }
@@ -173,6 +184,11 @@ pub fn render(
                 row[px] = std::array::from_fn(|c| {
                     let r = rho[c] as f64 / PI;
                     (match view {
+                        View::Weights => w
+                            .iter()
+                            .filter(|_| how != Lookup::Unmapped)
+                            .map(|&(p, wt)| wt as f64 * patch_colour(p)[c] as f64)
+                            .sum(),
                         View::Final => r * (dx[c] + hx[c] as f64) + le[c],
                         View::Direct => r * dx[c] + le[c],
                         View::Indirect => r * hx[c] as f64,

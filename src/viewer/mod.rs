@@ -88,7 +88,7 @@ pub struct ViewerReport {
 pub const HELP: &str = "\
 mouse: left drag orbits, right drag looks around, wheel zooms
 W A S D Q E: fly (forward, left, back, right, down, up)
-1 2 3 4: final, direct, indirect, patches
+1 2 3 4 5: final, direct, indirect, patches, surface-map weights
 Tab: next light; arrows, PageUp/PageDown: move it; I J K L: turn it
 + -: brighter, dimmer; [ ]: narrower, wider cone; C: colour
 N: add a point light here; B: add a spot light looking ahead; Delete: remove
@@ -356,6 +356,7 @@ impl App {
             KeyCode::Digit2 => self.view = View::Direct,
             KeyCode::Digit3 => self.view = View::Indirect,
             KeyCode::Digit4 => self.view = View::Patches,
+            KeyCode::Digit5 => self.view = View::Weights,
             KeyCode::KeyW => self.camera.fly(Vec3::Z, step),
             KeyCode::KeyS if self.modifiers.control_key() => self.save_config()?,
             KeyCode::KeyS => self.camera.fly(Vec3::NEG_Z, step),
