@@ -9,11 +9,11 @@
 //! ```text
 //!            bench ──────────────┐ (measures everything: may import all)
 //!              │                 │
-//!   bake ──────┼──► bakefile ◄───┼── runtime ◄── gl
-//!    │         │   (the file,    │     │          │
-//!    │         │    decode-only  │     │          │
-//!    │         │    codec)       │     │          │
-//!    └─────────┴───────┬─────────┴─────┴──────────┘
+//!   bake ──────┼──► bakefile ◄───┼── runtime ◄── gl ◄── viewer
+//!    │         │   (the file,    │     │          │        │
+//!    │         │    decode-only  │     │          │        │
+//!    │         │    codec)       │     │          │        │
+//!    └─────────┴───────┬─────────┴─────┴──────────┴────────┘
 //!                      ▼
 //!                    core  (scene, lights, patches, math, BVH, direct
 //!                           light, permutation, OpenCL layer, .npy)
@@ -27,8 +27,9 @@
 //! | [`core`] | nothing of this crate |
 //! | [`bakefile`] (the contract) | `core` |
 //! | [`bake`] | `core`, `bakefile` |
-//! | `runtime` (the CPU frame; to come) | `core`, `bakefile` |
-//! | `gl` (the renderer, one file per pass paired with `glsl/<pass>.*`; to come) | `core`, `bakefile`, `runtime` (its CPU references, in tests) |
+//! | [`runtime`] (the CPU frame, the reference) | `core`, `bakefile` |
+//! | [`gl`] (the GPU frame, one file per pass paired with `glsl/<pass>.*`) | `core`, `bakefile`, `runtime` (its definitions: views, images, emission, the gather's column flags) |
+//! | [`viewer`] (the window) | `core`, `runtime`, `gl` |
 //! | [`bench`](mod@bench) | everything |
 //! | [`synthetic`], [`generate`] (fixtures and bundled scenes) | `core` |
 //!
@@ -76,12 +77,12 @@
 //! ## Invariants
 //! - Every OpenCL kernel (`kernels/*.cl`, embedded with `include_str!`) has a
 //!   Rust CPU reference, and a test compares the two with a tolerance derived
-//!   from f32 rounding. Every GLSL shader (`glsl/`) has one in
-//!   [`runtime`] (the gather: `glsl/gather.comp` against
-//!   [`runtime::gather`]).
+//!   from f32 rounding. Every GLSL shader (`glsl/`) has one in [`runtime`]
+//!   or [`core`] (`glsl/README.md` pairs them; tests/gl_gather.rs and
+//!   tests/gl_render.rs compare them).
 //! - OpenCL code lives in [`core::compute`] and the stage modules' `cl_*`
-//!   functions; GL code lives in [`gl`] only, which imports the run time
-//!   and the contract, never a bake stage.
+//!   functions; GL code lives in [`gl`] and the window in [`viewer`], which
+//!   import the run time and the contract, never a bake stage.
 //! - No import cycle between modules; types shared by several stages live in
 //!   [`core`] (the patch, its frame, the permutation), not in the first stage
 //!   that needed them.
