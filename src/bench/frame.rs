@@ -352,6 +352,7 @@ pub fn run(
         options.height,
         1e3 * t_render
     )?;
+    gl_frame_table(&mut out, &rt, config, options)?;
 
     if !options.classic {
         return Ok(out);
@@ -432,6 +433,100 @@ pub fn run(
         t / t_lit
     )?;
     Ok(out)
+}
+
+/// The GL frame (`src/gl/renderer.rs`) on a headless context: the GPU time
+/// of each pass (timestamp queries) for a frame with nothing reused, with
+/// and without column skipping, the wall time of a whole frame and image
+/// (to `glFinish`), and an unchanged frame; or why it did not run. On
+/// Mesa's llvmpipe these are CPU figures too.
+fn gl_frame_table(
+    out: &mut String,
+    rt: &Runtime,
+    config: &SceneConfig,
+    options: &FrameBenchOptions,
+) -> std::fmt::Result {
+    use crate::gl::renderer::{GlOptions, GlRenderer};
+    use glow::HasContext;
+    let ctx = match crate::gl::context::Headless::new() {
+        Ok(c) => c,
+        Err(e) => return writeln!(out, "\nGL frame not run: {e}"),
+    };
+    let gl = &ctx.gl;
+    let mut r = match GlRenderer::new(
+        gl,
+        rt,
+        GlOptions {
+            cache: false,
+            samples: rt.options.samples,
+            ..GlOptions::default()
+        },
+    ) {
+        Ok(r) => r,
+        Err(e) => return writeln!(out, "\nGL frame not run: {e}"),
+    };
+    let size = (options.width, options.height);
+    let frame = |r: &mut GlRenderer| -> Result<(), crate::gl::GlError> {
+        r.frame(gl, &config.lights, &config.emission)?;
+        r.draw(
+            gl,
+            &config.camera,
+            crate::runtime::render::View::Final,
+            size,
+            &config.emission,
+        )?;
+        // SAFETY: waits for the GPU on the current context.
+        unsafe { gl.finish() };
+        Ok(())
+    };
+    let (res, t_frame) = best(options.repeat, || frame(&mut r));
+    if let Err(e) = res {
+        return writeln!(out, "\nGL frame failed: {e}");
+    }
+    let passes = r.pass_times(gl, true);
+    r.options.skip_columns = false;
+    let (_, t_all) = best(options.repeat, || frame(&mut r));
+    let passes_all = r.pass_times(gl, true);
+    r.options.skip_columns = true;
+    r.options.cache = true;
+    let _ = r.frame(gl, &config.lights, &config.emission);
+    let (_, t_unchanged) = best(options.repeat, || {
+        let _ = r.frame(gl, &config.lights, &config.emission);
+    });
+    let ms = |t: Option<f64>| t.map_or("—".to_string(), |v| format!("{v:.3} ms"));
+    writeln!(
+        out,
+        "\nGL frame on {} ({}), {} × {}, shadow maps {}², GPU times of the last of {} frames (timestamp queries)\n",
+        ctx.renderer(),
+        ctx.device,
+        options.width,
+        options.height,
+        r.options.shadow_resolution,
+        options.repeat
+    )?;
+    writeln!(out, "| pass | lit columns | every column |")?;
+    writeln!(out, "|---|---|---|")?;
+    for (k, name) in crate::gl::renderer::PASSES.iter().enumerate() {
+        writeln!(
+            out,
+            "| {name} | {} | {} |",
+            ms(passes[k]),
+            ms(passes_all[k])
+        )?;
+    }
+    writeln!(
+        out,
+        "| whole frame and image, wall clock to glFinish | {:.3} ms | {:.3} ms |",
+        1e3 * t_frame,
+        1e3 * t_all
+    )?;
+    writeln!(
+        out,
+        "| unchanged frame (nothing runs) | {:.4} ms | |",
+        1e3 * t_unchanged
+    )?;
+    r.delete(gl);
+    Ok(())
 }
 
 /// The GL gather (`src/gl/gather.rs`) on a headless context, every column,
