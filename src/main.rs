@@ -85,6 +85,48 @@ enum Command {
 
 #[derive(Subcommand)]
 enum BenchCommand {
+    /// Run time against error over scenes, patch counts, bounces, codecs
+    /// and reorderings, with classic radiosity and the GL frame in the same
+    /// run: sweep.json, sweep.md and log-log Pareto plots (SVG) in -o DIR.
+    /// Fails when a value is non-finite or a baseline error exceeds its
+    /// bound. --quick is the CI sweep (the Cornell box, a few minutes).
+    Sweep {
+        /// The CI sweep: the Cornell box at 256 and 1,000 patches, 1 and 3
+        /// bounces, BC1 without its sparse part, no reordering.
+        #[arg(long)]
+        quick: bool,
+        /// Scenes: SCENE.obj (camera and lights in SCENE.json beside it) or
+        /// SCENE.obj=LIGHTS.json (default: the Cornell box, the interior,
+        /// and ../shared/scenes/sponza/sponza.obj when present).
+        #[arg(long, value_delimiter = ',')]
+        scenes: Vec<String>,
+        /// Patch counts (default 500,2000,4000).
+        #[arg(long, value_delimiter = ',')]
+        patches: Vec<usize>,
+        /// Bounce counts besides the baseline's ∞ (default 1,2,3).
+        #[arg(long, value_delimiter = ',')]
+        bounces: Vec<u32>,
+        /// Fixed codecs besides the baseline's choice, separated by ';'
+        /// (default "bc1:top=0;bc4;bc6h;f16").
+        #[arg(long)]
+        codecs: Option<String>,
+        /// Reorderings besides the default (default none,hilbert).
+        #[arg(long, value_delimiter = ',')]
+        reorders: Vec<String>,
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        /// Leave out the GL frame.
+        #[arg(long)]
+        no_gl: bool,
+        /// The report's directory.
+        #[arg(short, long, default_value = "docs/sweep")]
+        output: PathBuf,
+        /// The bound on a baseline point's relative RMS error of H.
+        #[arg(long, default_value_t = 0.05)]
+        max_error: f64,
+        #[command(flatten)]
+        device: DeviceArgs,
+    },
     /// A bake's patch irradiance against an independent Monte Carlo path
     /// tracer on the original triangles (bias, relative RMS, the first
     /// reflection and later bounces, form-factor row sums).
@@ -571,6 +613,31 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
                 Ok(())
             }
+            BenchCommand::Sweep {
+                quick,
+                scenes,
+                patches,
+                bounces,
+                codecs,
+                reorders,
+                repeat,
+                no_gl,
+                output,
+                max_error,
+                device,
+            } => bench_sweep(SweepArgs {
+                quick,
+                scenes,
+                patches,
+                bounces,
+                codecs,
+                reorders,
+                repeat,
+                gl: !no_gl,
+                output,
+                max_error,
+                device,
+            }),
             BenchCommand::Frame {
                 bake,
                 camera_lights,
@@ -1110,6 +1177,167 @@ fn bench_frame(
     let report = bench::frame::run(bake, &config, &options)
         .with_context(|| format!("benchmarking frames of {}", bake.display()))?;
     print!("{report}");
+    Ok(())
+}
+
+/// The flags of `bench sweep`.
+struct SweepArgs {
+    quick: bool,
+    scenes: Vec<String>,
+    patches: Vec<usize>,
+    bounces: Vec<u32>,
+    codecs: Option<String>,
+    reorders: Vec<String>,
+    repeat: usize,
+    gl: bool,
+    output: PathBuf,
+    max_error: f64,
+    device: DeviceArgs,
+}
+
+/// A bundled scene's OBJ: under `scenes/` of the working directory, else
+/// of the source tree this binary was built from.
+fn bundled_scene_path(name: &str) -> anyhow::Result<PathBuf> {
+    let rel = Path::new("scenes").join(name).join(format!("{name}.obj"));
+    let candidates = [
+        rel.clone(),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(&rel),
+    ];
+    candidates
+        .iter()
+        .find(|p| p.exists())
+        .cloned()
+        .with_context(|| {
+            format!(
+                "the bundled scene {} is not here: run from the repository root, or give --scenes",
+                rel.display()
+            )
+        })
+}
+
+/// `radiosity bench sweep`.
+fn bench_sweep(a: SweepArgs) -> anyhow::Result<()> {
+    use bench::sweep::{SweepOptions, SweepScene};
+    let selection = DeviceSelection::from_flag_or_env(a.device.device)?;
+    if a.repeat == 0 {
+        bail!("--repeat must be at least 1");
+    }
+    if a.max_error.is_nan() || a.max_error <= 0.0 {
+        bail!("--max-error {}: expected a positive bound", a.max_error);
+    }
+    let scene_of = |s: &str| -> anyhow::Result<SweepScene> {
+        let (obj, json) = match s.split_once('=') {
+            Some((o, j)) => (PathBuf::from(o), PathBuf::from(j)),
+            None => (PathBuf::from(s), PathBuf::from(s).with_extension("json")),
+        };
+        if !obj.exists() {
+            bail!("--scenes: {} does not exist", obj.display());
+        }
+        if !json.exists() {
+            bail!(
+                "--scenes: the camera and lights {} do not exist (give SCENE.obj=LIGHTS.json)",
+                json.display()
+            );
+        }
+        Ok(SweepScene {
+            obj,
+            camera_lights: json,
+        })
+    };
+    let bundled = |name: &str| -> anyhow::Result<SweepScene> {
+        let obj = bundled_scene_path(name)?;
+        Ok(SweepScene {
+            camera_lights: obj.with_extension("json"),
+            obj,
+        })
+    };
+    let mut options = if a.quick {
+        SweepOptions::quick(bundled("cornell_box")?, a.output.clone(), selection)
+    } else {
+        let mut scenes = Vec::new();
+        if a.scenes.is_empty() {
+            scenes.push(bundled("cornell_box")?);
+            scenes.push(bundled("interior")?);
+            let sponza = PathBuf::from("../shared/scenes/sponza/sponza.obj");
+            let lights = bundled_scene_path("cornell_box")?
+                .parent()
+                .and_then(|p| p.parent())
+                .map(|p| p.join("external").join("sponza.json"));
+            if let (true, Some(l)) = (sponza.exists(), lights) {
+                scenes.push(SweepScene {
+                    obj: sponza,
+                    camera_lights: l,
+                });
+            }
+        } else {
+            for s in &a.scenes {
+                scenes.push(scene_of(s)?);
+            }
+        }
+        SweepOptions {
+            scenes,
+            patches: vec![500, 2000, 4000],
+            bounces: vec![1, 2, 3],
+            codecs: ["bc1:top=0", "bc4", "bc6h", "f16"]
+                .iter()
+                .map(|c| radiosity::bakefile::codec::CodecKind::parse(c))
+                .collect::<Result<_, _>>()?,
+            reorders: vec![
+                radiosity::bake::reorder::ReorderMethod::None,
+                radiosity::bake::reorder::ReorderMethod::SpaceFillingCurve,
+            ],
+            repeat: a.repeat,
+            gl: a.gl,
+            selection,
+            out: a.output.clone(),
+            max_h_error: a.max_error,
+        }
+    };
+    if !a.patches.is_empty() {
+        if a.patches.contains(&0) {
+            bail!("--patches: counts must be at least 1");
+        }
+        options.patches = a.patches.clone();
+    }
+    if !a.bounces.is_empty() {
+        if a.bounces.contains(&0) {
+            bail!("--bounces: counts must be at least 1 (the baseline is ∞)");
+        }
+        options.bounces = a.bounces.clone();
+    }
+    if let Some(c) = &a.codecs {
+        options.codecs = c
+            .split(';')
+            .filter(|s| !s.trim().is_empty())
+            .map(|s| {
+                radiosity::bakefile::codec::CodecKind::parse(s)
+                    .with_context(|| format!("--codecs {s:?}"))
+            })
+            .collect::<anyhow::Result<_>>()?;
+    }
+    if !a.reorders.is_empty() {
+        options.reorders = a
+            .reorders
+            .iter()
+            .map(|r| {
+                radiosity::bake::reorder::ReorderMethod::parse(r)
+                    .with_context(|| format!("--reorders {r:?}"))
+            })
+            .collect::<anyhow::Result<_>>()?;
+    }
+    if a.quick {
+        options.repeat = a.repeat.min(2);
+        options.gl = a.gl;
+        options.max_h_error = a.max_error;
+    }
+    let start = std::time::Instant::now();
+    let points = bench::sweep::run(&options, &mut |line| eprintln!("[sweep] {line}"))?;
+    eprintln!(
+        "[sweep] {} points in {:.1} s",
+        points.len(),
+        start.elapsed().as_secs_f64()
+    );
+    println!("{}", options.out.join("sweep.md").display());
     Ok(())
 }
 

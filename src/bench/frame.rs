@@ -27,7 +27,7 @@ use crate::bakefile::baked::{resolve_scene_path, Baked};
 use crate::core::compute::{Backend, DeviceSelection, Gpu};
 use crate::core::scene;
 use crate::core::scene_config::SceneConfig;
-use crate::runtime::gather::{simd_available, ActiveColumns};
+use crate::runtime::gather::ActiveColumns;
 use crate::runtime::render::{render, View};
 use crate::runtime::texture::Albedo;
 use crate::runtime::{Runtime, RuntimeOptions};
@@ -80,15 +80,20 @@ pub fn rel_rms(a: &[Vec<f32>; 3], r: &[Vec<f64>; 3]) -> f64 {
 /// One pass of classic radiosity: `y_c = F x_c` for the three channels,
 /// reading `F` once (module doc).
 pub fn classic_pass(f: &[f32], n: usize, x: &[Vec<f32>; 3], y: &mut [Vec<f32>; 3]) {
-    let simd = simd_available();
+    // The widest vector unit the CPU reports (simd_kind: "avx512",
+    // "avx2" or "none"), chosen once.
+    let simd = crate::runtime::gather::simd_kind();
     let rows: Vec<[f32; 3]> = (0..n)
         .into_par_iter()
         .map(|i| {
             let row = &f[i * n..(i + 1) * n];
             #[cfg(target_arch = "x86_64")]
-            if simd {
+            match simd {
                 // SAFETY: AVX-512F reported by the CPU.
-                return unsafe { dot3_avx512(row, x) };
+                "avx512" => return unsafe { dot3_avx512(row, x) },
+                // SAFETY: AVX2 and FMA reported by the CPU.
+                "avx2" => return unsafe { dot3_avx2(row, x) },
+                _ => {}
             }
             let _ = simd;
             dot3(row, x)
@@ -127,6 +132,12 @@ fn dot3(row: &[f32], x: &[Vec<f32>; 3]) -> [f32; 3] {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 unsafe fn dot3_avx512(row: &[f32], x: &[Vec<f32>; 3]) -> [f32; 3] {
+    dot3(row, x)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn dot3_avx2(row: &[f32], x: &[Vec<f32>; 3]) -> [f32; 3] {
     dot3(row, x)
 }
 
