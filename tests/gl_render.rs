@@ -61,15 +61,23 @@ fn bake(obj: &Path, resolution: Resolution) -> Runtime {
     Runtime::new(baked, s, RuntimeOptions::default())
 }
 
-/// The bundled Cornell box, copied to a temporary directory and baked.
-fn cornell(tag: &str) -> (Runtime, SceneConfig) {
-    let src = common::bundled("cornell_box");
-    let dir = common::temp_dir(tag);
-    for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
-        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
-    }
-    let rt = bake(&dir.join("cornell_box.obj"), Resolution::VoxelSize(40.0));
-    let config = scene_config::load(&dir.join("cornell_box.json")).unwrap();
+/// The bundled Cornell box, copied to a temporary directory and baked once
+/// for all the tests of this file (they only read the bake).
+fn cornell() -> (Runtime, SceneConfig) {
+    static BAKE: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+    let obj = BAKE.get_or_init(|| {
+        let src = common::bundled("cornell_box");
+        let dir = common::temp_dir("gl-cornell");
+        for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
+            std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
+        }
+        let obj = dir.join("cornell_box.obj");
+        drop(bake(&obj, Resolution::VoxelSize(40.0)));
+        obj
+    });
+    let baked = Baked::load(&obj.with_extension("rad")).unwrap();
+    let rt = Runtime::new(baked, scene::load(obj).unwrap(), RuntimeOptions::default());
+    let config = scene_config::load(&obj.with_extension("json")).unwrap();
     (rt, config)
 }
 
@@ -141,7 +149,7 @@ fn nine_lights(config: &SceneConfig) -> Vec<Light> {
 fn gl_direct_light_and_gather_on_patches_match_the_cpu_run_time_with_nine_lights() {
     let ctx = context();
     let gl = &ctx.gl;
-    let (mut rt, config) = cornell("gl-patches");
+    let (mut rt, config) = cornell();
     let lights = nine_lights(&config);
     assert!(lights.len() >= 9);
     let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).expect("GL renderer");
@@ -178,7 +186,7 @@ fn gl_direct_light_and_gather_on_patches_match_the_cpu_run_time_with_nine_lights
 fn gl_images_match_the_cpu_renderer_in_every_view() {
     let ctx = context();
     let gl = &ctx.gl;
-    let (mut rt, config) = cornell("gl-image");
+    let (mut rt, config) = cornell();
     let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).expect("GL renderer");
     r.frame(gl, &config.lights, &config.emission).unwrap();
     rt.frame(&config.lights, &config.emission);
@@ -210,7 +218,7 @@ fn gl_images_match_the_cpu_renderer_in_every_view() {
 fn column_skipping_and_unchanged_frames_give_the_image_of_the_full_gather() {
     let ctx = context();
     let gl = &ctx.gl;
-    let (rt, config) = cornell("gl-skip");
+    let (rt, config) = cornell();
     // A narrow spot lights a part of the patches: most columns are skipped.
     let spot = Light::Spot {
         position: [278.0, 540.0, 279.5],
@@ -272,7 +280,7 @@ fn column_skipping_and_unchanged_frames_give_the_image_of_the_full_gather() {
 fn gl_cornell_box_wall_next_to_the_red_wall_receives_more_red() {
     let ctx = context();
     let gl = &ctx.gl;
-    let (rt, config) = cornell("gl-bleed");
+    let (rt, config) = cornell();
     let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).unwrap();
     r.frame(gl, &config.lights, &config.emission).unwrap();
     let (w, h) = (160, 120);
@@ -397,7 +405,7 @@ fn gl_tone_mapping_matches_the_cpus_within_one_step() {
     use glow::HasContext;
     let ctx = context();
     let gl = &ctx.gl;
-    let (rt, config) = cornell("gl-tonemap");
+    let (rt, config) = cornell();
     let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).unwrap();
     r.frame(gl, &config.lights, &config.emission).unwrap();
     let (w, h) = (96, 72);
