@@ -85,6 +85,17 @@ enum Command {
 
 #[derive(Subcommand)]
 enum BenchCommand {
+    /// Numerical stability on generated scenes that are not kind: scales
+    /// 1e-3 to 1e4, the furnace at albedo 0.9 and 0.99 (exact E/(1-ρ)),
+    /// near-coincident surfaces, a wall thinner than a voxel; H against the
+    /// exact f64 solution of the same F; fails on any non-finite value.
+    Stress {
+        /// Target patch count of each bake.
+        #[arg(long, default_value_t = 600)]
+        patches: usize,
+        #[command(flatten)]
+        device: DeviceArgs,
+    },
     /// Run time against error over scenes, patch counts, bounces, codecs
     /// and reorderings, with classic radiosity and the GL frame in the same
     /// run: sweep.json, sweep.md and log-log Pareto plots (SVG) in -o DIR.
@@ -611,6 +622,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 } else {
                     print!("{text}");
                 }
+                Ok(())
+            }
+            BenchCommand::Stress { patches, device } => {
+                if patches == 0 {
+                    bail!("--patches must be at least 1");
+                }
+                let selection = DeviceSelection::from_flag_or_env(device.device)?;
+                let table =
+                    bench::stress::run(patches, selection, &mut |l| eprintln!("[stress] {l}"))?;
+                print!("{table}");
                 Ok(())
             }
             BenchCommand::Sweep {

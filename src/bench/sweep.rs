@@ -397,7 +397,8 @@ pub fn run(
 ) -> anyhow::Result<Vec<SweepPoint>> {
     std::fs::create_dir_all(&options.out)
         .with_context(|| format!("creating {}", options.out.display()))?;
-    let bakes = options.out.join("bakes");
+    // The bakes are written (their size is measured) and removed.
+    let bakes = std::env::temp_dir().join(format!("radiosity-sweep-{}", std::process::id()));
     std::fs::create_dir_all(&bakes)?;
     let mut points = Vec::new();
     for s in &options.scenes {
@@ -454,6 +455,7 @@ pub fn run(
             }
         }
     }
+    let _ = std::fs::remove_dir(&bakes);
     let json = serde_json::to_string_pretty(&points)?;
     std::fs::write(options.out.join("sweep.json"), json)?;
     std::fs::write(options.out.join("sweep.md"), markdown(&points, options))?;
