@@ -429,8 +429,9 @@ struct BakeArgs {
     #[arg(long, value_name = "F", conflicts_with = "max_error")]
     top_fraction: Option<f64>,
     /// Choose the cheapest codec setting whose relative RMS error of H = T·B0
-    /// over the error lights is at most E (default 0.02 unless --codec or
-    /// --top-fraction fixes the setting).
+    /// over the error lights is at most E, preferring BC1/BC4 within twice
+    /// its bytes (fast CPU decode); default 0.02 unless --codec or
+    /// --top-fraction fixes the setting.
     #[arg(long, value_name = "E")]
     max_error: Option<f64>,
     /// Seeded random lights the compression error is measured over (0: do

@@ -26,7 +26,9 @@ pub enum CodecChoice {
     /// This setting.
     Fixed(CodecKind),
     /// The cheapest of `codec::default_candidates` whose relative RMS
-    /// error of `H` over the error lights is at most this.
+    /// error of `H` over the error lights is at most this, preferring a
+    /// BC1/BC4 setting within `encode::BLOCK_CODEC_SLACK` of its bytes
+    /// (`encode::choose`).
     MaxError(f64),
 }
 

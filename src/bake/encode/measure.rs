@@ -183,11 +183,22 @@ pub fn default_candidates() -> Vec<CodecKind> {
     v
 }
 
-/// The cheapest setting (total bytes) among `candidates` (empty: the
+/// How much larger than the smallest passing setting a log-scaled block
+/// setting (BC1, BC4) may be and still be chosen over it ([`choose`]).
+/// Their CPU gather decodes 10–45 times more bytes per second than BC6H's
+/// and F16's (`radiosity bench sweep`, the Cornell box at 1,040 patches:
+/// BC6H at 1.0 B/entry gathers in 11–16 ms, BC1 at 1.5 B/entry in 0.9
+/// ms), and a GPU decodes all of them in hardware: a little more memory
+/// buys a much faster frame where the CPU gathers.
+pub const BLOCK_CODEC_SLACK: f64 = 2.0;
+
+/// The setting [`choose`] takes among `candidates` (empty: the
 /// [`default_candidates`]) whose relative RMS error of `H = T̃ · B0` over
-/// `b0_samples` is at most `max_error`: every candidate is encoded and
-/// measured, ties go to the earlier candidate. Returns the setting, its
-/// encoding and its measured error.
+/// `b0_samples` is at most `max_error`: the cheapest in total bytes, unless
+/// a BC1 or BC4 setting passes within [`BLOCK_CODEC_SLACK`] times its bytes,
+/// in which case the cheapest such block setting. Every candidate that can
+/// still matter is encoded and measured; ties go to the earlier candidate.
+/// Returns the setting, its encoding and its measured error.
 pub fn choose(
     t: [&[f32]; 3],
     n: usize,
@@ -237,14 +248,24 @@ pub fn choose_with(
     // still need trying.
     let mut order: Vec<CodecKind> = candidates.to_vec();
     order.sort_by(|a, b| expected_bytes_per_entry(*a).total_cmp(&expected_bytes_per_entry(*b)));
-    let mut best: Option<(CodecKind, Encoded, f64)> = None;
+    let is_block = |k: CodecKind| matches!(k, CodecKind::Bc1Log { .. } | CodecKind::Bc4Log { .. });
+    // The passing settings kept: the cheapest, and the cheapest block
+    // setting after it (at most two encodings are held).
+    let mut passing: Vec<(CodecKind, Encoded, f64)> = Vec::new();
     let mut tried = Vec::new();
     for kind in order {
-        if best
-            .as_ref()
-            .is_some_and(|b| expected_bytes_per_entry(kind) >= b.1.bytes_per_entry())
-        {
-            break;
+        // Past the cheapest passing setting, only block settings within the
+        // slack can still be chosen; past the cheapest passing block
+        // setting, nothing can.
+        let expected = expected_bytes_per_entry(kind);
+        if let Some(b) = passing.first() {
+            let limit = BLOCK_CODEC_SLACK * b.1.bytes_per_entry();
+            if passing.iter().any(|p| is_block(p.0)) || expected > limit {
+                break;
+            }
+            if !is_block(kind) {
+                continue;
+            }
         }
         let e = encode(kind, t, n)?;
         let err = h_error(&e, &reference, b0_samples);
@@ -253,18 +274,23 @@ pub fn choose_with(
             "{kind}: {err:.3e} at {:.3} B/entry",
             e.bytes_per_entry()
         ));
-        if err <= max_error
-            && best
-                .as_ref()
-                .is_none_or(|b| e.bytes_total() < b.1.bytes_total())
-        {
-            best = Some((kind, e, err));
+        if err <= max_error {
+            passing.push((kind, e, err));
         }
     }
-    best.ok_or_else(|| ChooseError::NoCandidate {
-        max_error,
-        tried: tried.join("; "),
-    })
+    // The candidates come in order of expected bytes, which the real bytes
+    // follow closely; compare the real ones.
+    let Some(cheapest) = (0..passing.len()).min_by_key(|&i| passing[i].1.bytes_total()) else {
+        return Err(ChooseError::NoCandidate {
+            max_error,
+            tried: tried.join("; "),
+        });
+    };
+    let limit = BLOCK_CODEC_SLACK * passing[cheapest].1.bytes_total() as f64;
+    let block = (0..passing.len())
+        .filter(|&i| is_block(passing[i].0) && passing[i].1.bytes_total() as f64 <= limit)
+        .min_by_key(|&i| passing[i].1.bytes_total());
+    Ok(passing.swap_remove(block.unwrap_or(cheapest)))
 }
 
 /// The bytes per matrix entry a setting is expected to take for an RGB

@@ -9,7 +9,10 @@ pub mod bc1;
 pub mod bc4;
 pub mod measure;
 
-pub use measure::{choose, choose_with, default_candidates, h_error, mat_vec, measure, CodecError};
+pub use measure::{
+    choose, choose_with, default_candidates, h_error, mat_vec, measure, CodecError,
+    BLOCK_CODEC_SLACK,
+};
 
 use crate::bakefile::codec::decode::{decode_tile_bytes, log_lut, Codebook};
 use crate::bakefile::codec::rgb9e5;
