@@ -48,7 +48,7 @@ pub struct FrameBenchOptions {
 }
 
 /// The fastest of `repeat` runs: its value and its time.
-fn best<T>(repeat: usize, mut f: impl FnMut() -> T) -> (T, f64) {
+pub(crate) fn best<T>(repeat: usize, mut f: impl FnMut() -> T) -> (T, f64) {
     let mut best: Option<(T, f64)> = None;
     for _ in 0..repeat.max(1) {
         let t = Instant::now();
@@ -139,6 +139,19 @@ unsafe fn dot3_avx512(row: &[f32], x: &[Vec<f32>; 3]) -> [f32; 3] {
 #[target_feature(enable = "avx2,fma")]
 unsafe fn dot3_avx2(row: &[f32], x: &[Vec<f32>; 3]) -> [f32; 3] {
     dot3(row, x)
+}
+
+/// `f` (n × n, patch order) with row and column `i` taken from patch
+/// `order[i]`: the matrix order of a bake's run time.
+pub(crate) fn in_matrix_order(f: &[f32], n: usize, order: &[u32]) -> Vec<f32> {
+    let mut out = vec![0.0f32; n * n];
+    out.par_chunks_mut(n).enumerate().for_each(|(i, row)| {
+        let src = &f[order[i] as usize * n..(order[i] as usize + 1) * n];
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = src[order[j] as usize];
+        }
+    });
+    out
 }
 
 /// `k` bounces of classic radiosity from `b0` (module doc).
@@ -388,14 +401,7 @@ pub fn run(
         ff.n
     );
     // Into matrix order: row/column i is file patch order[i].
-    let order = &rt.baked.order;
-    let mut f = vec![0.0f32; n * n];
-    f.par_chunks_mut(n).enumerate().for_each(|(i, row)| {
-        let src = &ff.f[order[i] as usize * n..(order[i] as usize + 1) * n];
-        for (j, v) in row.iter_mut().enumerate() {
-            *v = src[order[j] as usize];
-        }
-    });
+    let f = in_matrix_order(&ff.f, n, &rt.baked.order);
     let albedo: Vec<[f32; 3]> = rt.baked.patches.iter().map(|p| p.albedo).collect();
     let exact = exact_infinite(&f, n, &albedo, &b0);
     let err_gather = rel_rms(&h_rt, &exact);

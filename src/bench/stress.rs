@@ -20,7 +20,7 @@
 //! dark room's largest `H` against the lit room's mean, the range of `H`,
 //! and any non-finite value (there must be none: the run fails).
 
-use super::frame::{exact_infinite, rel_rms};
+use super::frame::{exact_infinite, in_matrix_order, rel_rms};
 use crate::bake::voxelize::Resolution;
 use crate::bake::{self, BakeConfig, ComputeChoice};
 use crate::bakefile::baked::Baked;
@@ -30,7 +30,6 @@ use crate::core::scene_config::Light;
 use crate::generate::{self, GeneratedScene};
 use crate::runtime::{Runtime, RuntimeOptions};
 use anyhow::Context;
-use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -162,13 +161,7 @@ fn run_case(
     let n = baked.patches.len();
     let order = output.permutation.order.clone();
     let ff = &output.form_factors;
-    let mut f = vec![0.0f32; n * n];
-    f.par_chunks_mut(n).enumerate().for_each(|(i, row)| {
-        let src = &ff.f[order[i] as usize * n..(order[i] as usize + 1) * n];
-        for (j, v) in row.iter_mut().enumerate() {
-            *v = src[order[j] as usize];
-        }
-    });
+    let f = in_matrix_order(&ff.f, n, &order);
     let albedo: Vec<[f32; 3]> = baked.patches.iter().map(|p| p.albedo).collect();
     let centres: Vec<[f32; 3]> = baked.patches.iter().map(|p| p.centre).collect();
     let areas: Vec<f64> = baked.patches.iter().map(|p| p.area as f64).collect();

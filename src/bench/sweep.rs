@@ -28,7 +28,7 @@
 //! within 2 % over 64 random lights; with a scene's own lights it is
 //! within 5 %): otherwise the sweep fails after writing its report.
 
-use super::frame::{classic, exact_infinite, rel_rms};
+use super::frame::{best, classic, exact_infinite, in_matrix_order, rel_rms};
 use crate::bake::reorder::ReorderMethod;
 use crate::bake::transfer::Bounces;
 use crate::bake::voxelize::Resolution;
@@ -133,20 +133,6 @@ pub struct SweepPoint {
     pub all_finite: bool,
 }
 
-/// The fastest of `repeat` runs.
-fn best<T>(repeat: usize, mut f: impl FnMut() -> T) -> (T, f64) {
-    let mut out: Option<(T, f64)> = None;
-    for _ in 0..repeat.max(1) {
-        let t = Instant::now();
-        let v = f();
-        let s = t.elapsed().as_secs_f64();
-        if out.as_ref().is_none_or(|b| s < b.1) {
-            out = Some((v, s));
-        }
-    }
-    out.expect("at least one run")
-}
-
 /// The process's peak resident memory, bytes (`VmHWM`).
 fn peak_rss() -> Option<u64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
@@ -227,13 +213,7 @@ fn point(
         ff.n
     );
     // F in matrix order (the run time's order).
-    let mut f = vec![0.0f32; n * n];
-    f.par_chunks_mut(n).enumerate().for_each(|(i, row)| {
-        let src = &ff.f[order[i] as usize * n..(order[i] as usize + 1) * n];
-        for (j, v) in row.iter_mut().enumerate() {
-            *v = src[order[j] as usize];
-        }
-    });
+    let f = in_matrix_order(&ff.f, n, &order);
     let albedo: Vec<[f32; 3]> = baked.patches.iter().map(|p| p.albedo).collect();
     let bounces = cfg.transfer.bounces;
     let matrix_bytes = baked.matrix.bytes_total() as u64;
