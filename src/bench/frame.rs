@@ -27,7 +27,7 @@ use crate::bakefile::baked::{resolve_scene_path, Baked};
 use crate::core::compute::{Backend, DeviceSelection, Gpu};
 use crate::core::scene;
 use crate::core::scene_config::SceneConfig;
-use crate::runtime::gather::ActiveColumns;
+use crate::runtime::gather::{ActiveColumns, GatherStats};
 use crate::runtime::render::{render, View};
 use crate::runtime::texture::Albedo;
 use crate::runtime::{Runtime, RuntimeOptions};
@@ -184,10 +184,22 @@ pub fn exact_infinite(
     albedo: &[[f32; 3]],
     b0: &[Vec<f32>; 3],
 ) -> [Vec<f64>; 3] {
+    exact_series(f, n, albedo, b0, None)
+}
+
+/// The exact `H` of `k` bounces of `F` in f64, `Σ_{h=1..k} F (ρF)^{h−1}
+/// B0`; `None`: until the next term is below 1e-10 of the sum (`T_∞`).
+pub fn exact_series(
+    f: &[f32],
+    n: usize,
+    albedo: &[[f32; 3]],
+    b0: &[Vec<f32>; 3],
+    k: Option<usize>,
+) -> [Vec<f64>; 3] {
     std::array::from_fn(|c| {
         let mut h = vec![0.0f64; n];
         let mut x: Vec<f64> = b0[c].iter().map(|&v| v as f64).collect();
-        for _ in 0..100_000 {
+        for _ in 0..k.unwrap_or(100_000) {
             let y: Vec<f64> = (0..n)
                 .into_par_iter()
                 .map(|i| {
@@ -205,12 +217,53 @@ pub fn exact_infinite(
                 sh += h[j] * h[j];
                 x[j] = albedo[j][c] as f64 * y[j];
             }
-            if dy <= 1e-20 * sh {
+            if k.is_none() && dy <= 1e-20 * sh {
                 break;
             }
         }
         h
     })
+}
+
+/// A frame's times ([`time_frame`]).
+pub(crate) struct FrameTimes {
+    pub stats: crate::runtime::FrameStats,
+    /// Seconds of the whole frame.
+    pub frame: f64,
+    pub b0: [Vec<f32>; 3],
+    pub h: [Vec<f32>; 3],
+    pub all: ActiveColumns,
+    pub lit: ActiveColumns,
+    /// The gather alone over every column and over the lit ones: what it
+    /// read, and seconds.
+    pub gather_all: (GatherStats, f64),
+    pub gather_lit: (GatherStats, f64),
+}
+
+/// A full frame of `config`'s lights with nothing reused (`rt` must not
+/// cache), then the gather alone over every column and over the frame's
+/// active ones; the fastest of `repeat` runs each.
+pub(crate) fn time_frame(rt: &mut Runtime, config: &SceneConfig, repeat: usize) -> FrameTimes {
+    let (stats, frame) = best(repeat, || rt.frame(&config.lights, &config.emission));
+    let b0 = rt.b0().clone();
+    let h = rt.h().clone();
+    let refs = [&b0[0][..], &b0[1][..], &b0[2][..]];
+    let tile = rt.baked.matrix.index.tile;
+    let all = ActiveColumns::of(refs, tile, true);
+    let lit = ActiveColumns::of(refs, tile, false);
+    let mut scratch = h.clone();
+    let gather_all = best(repeat, || rt.gather.gather(refs, &all, &mut scratch));
+    let gather_lit = best(repeat, || rt.gather.gather(refs, &lit, &mut scratch));
+    FrameTimes {
+        stats,
+        frame,
+        b0,
+        h,
+        all,
+        lit,
+        gather_all,
+        gather_lit,
+    }
 }
 
 /// Runs the benchmark on the bake at `path` with `config`'s camera and
@@ -254,20 +307,13 @@ pub fn run(
             ..RuntimeOptions::default()
         },
     );
-    // A full frame, nothing reused.
-    let (fs, t_frame) = best(options.repeat, || {
-        rt.frame(&config.lights, &config.emission)
-    });
-    let b0 = rt.b0().clone();
-    let h_rt = rt.h().clone();
-    // The gather alone: every column, and the frame's active columns.
+    let ft = time_frame(&mut rt, config, options.repeat);
+    let (fs, t_frame, b0, h_rt) = (ft.stats, ft.frame, ft.b0, ft.h);
     let refs = [&b0[0][..], &b0[1][..], &b0[2][..]];
     let tile = rt.baked.matrix.index.tile;
-    let all = ActiveColumns::of(refs, tile, true);
-    let lit = ActiveColumns::of(refs, tile, false);
+    let (all, lit) = (ft.all, ft.lit);
     let mut h = h_rt.clone();
-    let (s_all, t_all) = best(options.repeat, || rt.gather.gather(refs, &all, &mut h));
-    let (s_lit, t_lit) = best(options.repeat, || rt.gather.gather(refs, &lit, &mut h));
+    let ((s_all, t_all), (s_lit, t_lit)) = (ft.gather_all, ft.gather_lit);
     // Unchanged frame.
     rt.options.cache = true;
     rt.frame(&config.lights, &config.emission);

@@ -28,7 +28,9 @@
 //! within 2 % over 64 random lights; with a scene's own lights it is
 //! within 5 %): otherwise the sweep fails after writing its report.
 
-use super::frame::{best, classic, exact_infinite, in_matrix_order, rel_rms};
+use super::frame::{
+    best, classic, exact_infinite, exact_series, in_matrix_order, rel_rms, time_frame,
+};
 use crate::bake::reorder::ReorderMethod;
 use crate::bake::transfer::Bounces;
 use crate::bake::voxelize::Resolution;
@@ -38,10 +40,8 @@ use crate::bakefile::codec::CodecKind;
 use crate::core::compute::DeviceSelection;
 use crate::core::scene;
 use crate::core::scene_config::SceneConfig;
-use crate::runtime::gather::ActiveColumns;
 use crate::runtime::{Runtime, RuntimeOptions};
 use anyhow::Context;
-use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -146,37 +146,6 @@ fn reset_peak_rss() {
     let _ = std::fs::write("/proc/self/clear_refs", "5");
 }
 
-/// The exact `H` of `k` bounces of `F` in f64: `Σ_{h=1..k} F (ρF)^{h−1} B0`.
-fn exact_bounces(
-    f: &[f32],
-    n: usize,
-    albedo: &[[f32; 3]],
-    b0: &[Vec<f32>; 3],
-    k: usize,
-) -> [Vec<f64>; 3] {
-    std::array::from_fn(|c| {
-        let mut h = vec![0.0f64; n];
-        let mut x: Vec<f64> = b0[c].iter().map(|&v| v as f64).collect();
-        for _ in 0..k {
-            let y: Vec<f64> = (0..n)
-                .into_par_iter()
-                .map(|i| {
-                    f[i * n..(i + 1) * n]
-                        .iter()
-                        .zip(&x)
-                        .map(|(&a, &b)| a as f64 * b)
-                        .sum()
-                })
-                .collect();
-            for j in 0..n {
-                h[j] += y[j];
-                x[j] = albedo[j][c] as f64 * y[j];
-            }
-        }
-        h
-    })
-}
-
 /// One bake and its measurements.
 fn point(
     s: &SweepScene,
@@ -227,24 +196,12 @@ fn point(
             ..RuntimeOptions::default()
         },
     );
-    let (fs, t_frame) = best(options.repeat, || {
-        rt.frame(&config.lights, &config.emission)
-    });
-    let b0 = rt.b0().clone();
-    let h = rt.h().clone();
-    let refs = [&b0[0][..], &b0[1][..], &b0[2][..]];
-    let tile = rt.baked.matrix.index.tile;
-    let all = ActiveColumns::of(refs, tile, true);
-    let lit = ActiveColumns::of(refs, tile, false);
-    let mut scratch = h.clone();
-    let (_, t_all) = best(options.repeat, || {
-        rt.gather.gather(refs, &all, &mut scratch)
-    });
-    let (_, t_lit) = best(options.repeat, || {
-        rt.gather.gather(refs, &lit, &mut scratch)
-    });
+    let ft = time_frame(&mut rt, config, options.repeat);
+    let (fs, t_frame, b0, h) = (ft.stats, ft.frame, ft.b0, ft.h);
+    let (all, lit) = (ft.all, ft.lit);
+    let (t_all, t_lit) = (ft.gather_all.1, ft.gather_lit.1);
     let exact = match bounces {
-        Bounces::K(k) => exact_bounces(&f, n, &albedo, &b0, k as usize),
+        Bounces::K(k) => exact_series(&f, n, &albedo, &b0, Some(k as usize)),
         Bounces::Infinite => exact_infinite(&f, n, &albedo, &b0),
     };
     let h_error = rel_rms(&h, &exact);
