@@ -17,10 +17,11 @@ use radiosity::bench::transfer::StressCase;
 use radiosity::core::compute::Backend;
 use radiosity::core::compute::Gpu;
 use radiosity::core::compute::{self, DeviceSelection};
-use radiosity::core::scene_config::SceneConfig;
 use radiosity::{bakefile, bench, core::scene, generate};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+
+mod frames;
 
 #[derive(Parser)]
 #[command(
@@ -593,8 +594,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Devices { json } => devices(json),
         Command::Info { path, json } => info(&path, json),
         Command::Bake(args) => bake(args),
-        Command::Render(args) => render(args),
-        Command::View(args) => view(args),
+        Command::Render(args) => frames::render(args),
+        Command::View(args) => frames::view(args),
         Command::Generate { name, output, list } => generate(name, output, list),
         Command::Bench { which } => match which {
             BenchCommand::Accuracy {
@@ -611,7 +612,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     bail!("--paths must be at least 1");
                 }
                 let info = Baked::load(&bake)?.info;
-                let config = camera_lights(cl, &resolve_scene_path(&bake, &info.scene))?;
+                let config = frames::camera_lights(cl, &resolve_scene_path(&bake, &info.scene))?;
                 let sel = if first_reflection {
                     Some(DeviceSelection::from_flag_or_env(device.device)?)
                 } else {
@@ -805,353 +806,6 @@ fn bake(args: BakeArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The bake file for `input`: itself, or a bake of the scene (cached).
-fn bake_for(input: &Path, patches: usize, device: &DeviceArgs) -> anyhow::Result<PathBuf> {
-    let is_rad = input
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("rad"));
-    if is_rad || bakefile::is_bake_file(input) {
-        return Ok(input.to_path_buf());
-    }
-    let mut config = BakeConfig::new(input.to_path_buf(), Resolution::Patches(patches));
-    config.compute = ComputeChoice::OpenCl(DeviceSelection::from_flag_or_env(device.device)?);
-    config.validate().map_err(with_flag)?;
-    let (path, _) =
-        radiosity::bake::cache::bake_or_reuse(&config, &mut |l| eprintln!("[bake] {l}"))?;
-    Ok(path)
-}
-
-/// The camera/lights file: given, or the scene's `NAME.json`.
-fn camera_lights(given: Option<PathBuf>, scene: &Path) -> anyhow::Result<SceneConfig> {
-    let path = given.unwrap_or_else(|| scene.with_extension("json"));
-    radiosity::core::scene_config::load(&path).with_context(|| {
-        format!(
-            "reading the camera and lights {} (give another with --camera-lights)",
-            path.display()
-        )
-    })
-}
-
-/// `radiosity render`.
-fn render(args: RenderArgs) -> anyhow::Result<()> {
-    use radiosity::runtime::render::View;
-    use radiosity::runtime::{Runtime, RuntimeOptions};
-    let view = View::parse(&args.view).with_context(|| {
-        format!(
-            "--view {:?}: expected final, direct, indirect, patches or weights",
-            args.view
-        )
-    })?;
-    if !matches!(args.backend.as_str(), "cpu" | "gl" | "auto") {
-        bail!("--backend {:?}: expected cpu, gl or auto", args.backend);
-    }
-    if !(16..=radiosity::gl::shadow::MAX_RESOLUTION).contains(&args.shadow_resolution) {
-        bail!(
-            "--shadow-resolution {}: expected 16..={}",
-            args.shadow_resolution,
-            radiosity::gl::shadow::MAX_RESOLUTION
-        );
-    }
-    if !(1..=16).contains(&args.samples) {
-        bail!("--samples {}: expected 1..=16", args.samples);
-    }
-    if args.width == 0 || args.height == 0 || args.width * args.height > 1 << 26 {
-        bail!(
-            "--width {} --height {}: the image must have between 1 and 2^26 pixels",
-            args.width,
-            args.height
-        );
-    }
-    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("creating the output directory {}", dir.display()))?;
-    }
-    let (baked, scene, scene_path) =
-        load_bake(&args.input, args.patches, &args.device, args.scene.clone())?;
-    let config = camera_lights(args.camera_lights.clone(), &scene_path)?;
-    let options = RuntimeOptions {
-        samples: args.samples,
-        ..RuntimeOptions::default()
-    };
-    let mut rt = Runtime::new(baked, scene, options);
-    let (img, summary) = draw_headless(
-        &mut rt,
-        &config,
-        view,
-        (args.width, args.height),
-        &args.backend,
-        args.shadow_resolution,
-    )?;
-    let exposure = write_png(&args.output, &img, args.exposure)?;
-    if let Some(hdr) = &args.hdr {
-        radiosity::runtime::tonemap::write_pfm(hdr, img.width, img.height, &img.radiance)
-            .with_context(|| format!("writing {}", hdr.display()))?;
-    }
-    eprintln!("{summary}; exposure {exposure:.4}");
-    println!("{}", args.output.display());
-    Ok(())
-}
-
-/// The bake of `input` (a .rad, or a scene baked first or taken from the
-/// cache) and its scene, checked to be the one it was baked from.
-fn load_bake(
-    input: &Path,
-    patches: usize,
-    device: &DeviceArgs,
-    scene_given: Option<PathBuf>,
-) -> anyhow::Result<(
-    radiosity::bakefile::baked::Baked,
-    radiosity::core::scene::Scene,
-    PathBuf,
-)> {
-    use radiosity::bakefile::baked::{resolve_scene_path, Baked};
-    let rad = bake_for(input, patches, device)?;
-    let baked = Baked::load(&rad)?;
-    let scene_path = scene_given.unwrap_or_else(|| resolve_scene_path(&rad, &baked.info.scene));
-    let scene = scene::load(&scene_path).with_context(|| {
-        format!(
-            "loading the scene {} (give it with --scene)",
-            scene_path.display()
-        )
-    })?;
-    let hash = bakefile::SceneHash::of_scene(&scene)?;
-    let diff = baked.scene_hash.differences(&hash);
-    if !diff.is_empty() {
-        bail!(
-            "{} was baked from a different scene than {} ({} changed): bake it again",
-            rad.display(),
-            scene_path.display(),
-            diff.join(", ")
-        );
-    }
-    Ok((baked, scene, scene_path))
-}
-
-/// Lights `rt` with `config` and draws `view` headless: on GL through EGL
-/// (`backend` "gl", or "auto" when a context can be made) or on the CPU.
-/// Returns the image and a one-line summary of what was done.
-fn draw_headless(
-    rt: &mut radiosity::runtime::Runtime,
-    config: &SceneConfig,
-    view: radiosity::runtime::render::View,
-    (width, height): (usize, usize),
-    backend: &str,
-    shadow_resolution: usize,
-) -> anyhow::Result<(radiosity::runtime::render::Image, String)> {
-    use radiosity::runtime::render::render;
-    use radiosity::runtime::texture::Albedo;
-    // GL: a headless context, or (auto) the CPU when none can be made.
-    let context = match backend {
-        "gl" => Some(radiosity::gl::context::Headless::new().context(
-            "--backend gl needs an OpenGL 4.5 context through EGL (scripts/setup installs Mesa)",
-        )?),
-        "auto" => match radiosity::gl::context::Headless::new() {
-            Ok(c) => Some(c),
-            Err(e) => {
-                eprintln!("no OpenGL context ({e}): rendering on the CPU");
-                None
-            }
-        },
-        _ => None,
-    };
-    let out = match &context {
-        Some(ctx) => {
-            let gl = &ctx.gl;
-            let mut r = radiosity::gl::renderer::GlRenderer::new(
-                gl,
-                rt,
-                radiosity::gl::renderer::GlOptions {
-                    shadow_resolution,
-                    samples: rt.options.samples,
-                    ..Default::default()
-                },
-            )
-            .context("preparing the GL renderer")?;
-            let start = std::time::Instant::now();
-            let fs = r.frame(gl, &config.lights, &config.emission)?;
-            let img = r.render(gl, &config.camera, view, (width, height), &config.emission)?;
-            let wall = start.elapsed().as_secs_f64();
-            let times = r.pass_times(gl, true);
-            let passes: Vec<String> = radiosity::gl::renderer::PASSES
-                .iter()
-                .zip(times)
-                .map(|(name, t)| match t {
-                    Some(ms) => format!("{name} {ms:.2} ms"),
-                    None => format!("{name} (no timer)"),
-                })
-                .collect();
-            let s = format!(
-                "gl ({}, {}): {} patches, {} light(s), {} shadow views; GPU {}; frame and image {}x{} in {wall:.3} s with read-back",
-                ctx.device,
-                ctx.renderer(),
-                rt.n(),
-                fs.lights,
-                fs.views,
-                passes.join(", "),
-                width,
-                height
-            );
-            r.delete(gl);
-            (img, s)
-        }
-        None => {
-            let albedo = Albedo::new(&rt.scene);
-            let fs = rt.frame(&config.lights, &config.emission);
-            let (img, rs) = render(rt, config, view, width, height, &albedo);
-            let s = format!(
-                "cpu: {} patches, direct {:.3} s, gather {:.3} s ({} bytes read, {:.1} % of column groups active); image {}×{} in {:.3} s ({} back-facing pixels, {} through a nearest piece, {} unmapped)",
-                rt.n(),
-                fs.seconds_direct,
-                fs.seconds_gather,
-                fs.gather.bytes_read,
-                100.0 * fs.active_groups as f64 / fs.total_groups.max(1) as f64,
-                img.width,
-                img.height,
-                rs.seconds,
-                rs.back_faces,
-                rs.nearest_piece,
-                rs.unmapped
-            );
-            (img, s)
-        }
-    };
-    Ok(out)
-}
-
-/// Writes `img` as an 8-bit sRGB PNG with `exposure` (automatic when
-/// `None`); returns the exposure used.
-fn write_png(
-    path: &Path,
-    img: &radiosity::runtime::render::Image,
-    exposure: Option<f32>,
-) -> anyhow::Result<f32> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("creating the output directory {}", dir.display()))?;
-    }
-    let (pixels, exposure) = img.to_srgb8(exposure);
-    let png = image::RgbImage::from_raw(img.width as u32, img.height as u32, pixels)
-        .context("image size")?;
-    let mut bytes = Vec::new();
-    png.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )?;
-    write_atomic(path, &bytes, None).with_context(|| format!("writing {}", path.display()))?;
-    Ok(exposure)
-}
-
-/// `radiosity view`.
-fn view(args: ViewArgs) -> anyhow::Result<()> {
-    use radiosity::runtime::{Runtime, RuntimeOptions};
-    use radiosity::viewer::{self, ViewerConfig};
-    if !(1..=16).contains(&args.samples) {
-        bail!("--samples {}: expected 1..=16", args.samples);
-    }
-    if !(16..=radiosity::gl::shadow::MAX_RESOLUTION).contains(&args.shadow_resolution) {
-        bail!(
-            "--shadow-resolution {}: expected 16..={}",
-            args.shadow_resolution,
-            radiosity::gl::shadow::MAX_RESOLUTION
-        );
-    }
-    if !(1..=16384).contains(&args.width) || !(1..=16384).contains(&args.height) {
-        bail!(
-            "--width {} --height {}: expected 1..=16384 each",
-            args.width,
-            args.height
-        );
-    }
-    if args.frames == Some(0) {
-        bail!("--frames 0: expected at least 1");
-    }
-    if args.screenshot.is_some() && args.frames.is_none() {
-        bail!("--screenshot needs --frames N (P or F12 saves screenshots interactively)");
-    }
-    let (baked, scene, scene_path) =
-        load_bake(&args.input, args.patches, &args.device, args.scene.clone())?;
-    let config_path = args
-        .camera_lights
-        .clone()
-        .unwrap_or_else(|| scene_path.with_extension("json"));
-    let config = camera_lights(Some(config_path.clone()), &scene_path)?;
-    let title = format!(
-        "radiosity: {}",
-        scene_path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default()
-    );
-    let rt = Runtime::new(
-        baked,
-        scene,
-        RuntimeOptions {
-            samples: args.samples,
-            ..RuntimeOptions::default()
-        },
-    );
-    if !viewer::has_display() {
-        if let Some(png) = &args.headless_to {
-            let mut rt = rt;
-            eprintln!(
-                "no display (DISPLAY is not set): rendering the starting view headless instead"
-            );
-            let (w, h) = (args.width as usize, args.height as usize);
-            let (img, summary) = draw_headless(
-                &mut rt,
-                &config,
-                radiosity::runtime::render::View::Final,
-                (w, h),
-                "auto",
-                args.shadow_resolution,
-            )?;
-            let exposure = write_png(png, &img, args.exposure)?;
-            eprintln!("{summary}; exposure {exposure:.4}");
-            println!("{}", png.display());
-            return Ok(());
-        }
-    }
-    let report = viewer::run(
-        rt,
-        ViewerConfig {
-            config,
-            save_to: args.save_to.clone().unwrap_or(config_path),
-            width: args.width,
-            height: args.height,
-            frames: args.frames,
-            screenshot: args.screenshot.clone(),
-            gl: radiosity::gl::renderer::GlOptions {
-                shadow_resolution: args.shadow_resolution,
-                samples: args.samples,
-                ..Default::default()
-            },
-            exposure: args.exposure,
-            title,
-        },
-    )
-    .map_err(|e| match e {
-        viewer::ViewerError::NoDisplay(why) => anyhow::anyhow!(
-            "no display to open a window on ({why}); `radiosity render --backend gl` (or `view --headless-to FILE.png`) draws the same view headless to a PNG"
-        ),
-        e => anyhow::Error::new(e).context("the viewer"),
-    })?;
-    let passes: Vec<String> = radiosity::gl::renderer::PASSES
-        .iter()
-        .zip(report.pass_ms)
-        .filter_map(|(n, t)| t.map(|ms| format!("{n} {ms:.2} ms")))
-        .collect();
-    eprintln!(
-        "{} frames in {:.2} s; last GPU times: {}",
-        report.frames,
-        report.seconds,
-        passes.join(", ")
-    );
-    for p in &report.screenshots {
-        println!("{}", p.display());
-    }
-    Ok(())
-}
-
 /// `radiosity generate`.
 fn generate(name: Option<String>, output: Option<PathBuf>, list: bool) -> anyhow::Result<()> {
     if list {
@@ -1188,7 +842,7 @@ fn bench_frame(
         bail!("--repeat, --width and --height must be at least 1");
     }
     let info = Baked::load(bake)?.info;
-    let config = camera_lights(camera_lights_file, &resolve_scene_path(bake, &info.scene))?;
+    let config = frames::camera_lights(camera_lights_file, &resolve_scene_path(bake, &info.scene))?;
     let options = bench::frame::FrameBenchOptions {
         repeat,
         width,
