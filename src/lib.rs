@@ -112,6 +112,7 @@ pub mod bench;
 pub mod core;
 pub mod generate;
 pub mod gl;
+pub mod mitsuba;
 pub mod reference;
 pub mod runtime;
 pub mod synthetic;
