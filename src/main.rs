@@ -156,6 +156,26 @@ enum BenchCommand {
         /// The bound on a baseline point's relative RMS error of H.
         #[arg(long, default_value_t = 0.05)]
         max_error: f64,
+        /// The bound on a baseline point's indirect image error against
+        /// Mitsuba 3 (noise removed).
+        #[arg(long, default_value_t = 0.25)]
+        max_image_error: f64,
+        /// Leave out the image errors against Mitsuba 3.
+        #[arg(long)]
+        no_images: bool,
+        /// Where the Mitsuba 3 references are, one folder per scene stem;
+        /// a missing one is made by scripts/mitsuba-reference (default:
+        /// OUTPUT/reference).
+        #[arg(long, value_name = "DIR")]
+        references: Option<PathBuf>,
+        /// Size of the reference images, WxH (default 320x240; quick
+        /// 160x120).
+        #[arg(long, value_name = "WxH")]
+        reference_size: Option<String>,
+        /// Samples per pixel of a reference made by the sweep (default
+        /// 2048; quick 512).
+        #[arg(long)]
+        reference_spp: Option<u32>,
         #[command(flatten)]
         device: DeviceArgs,
     },
@@ -675,6 +695,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 no_gl,
                 output,
                 max_error,
+                max_image_error,
+                no_images,
+                references,
+                reference_size,
+                reference_spp,
                 device,
             } => bench_sweep(SweepArgs {
                 quick,
@@ -687,6 +712,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 gl: !no_gl,
                 output,
                 max_error,
+                max_image_error,
+                no_images,
+                references,
+                reference_size,
+                reference_spp,
                 device,
             }),
             BenchCommand::Frame {
@@ -926,6 +956,11 @@ struct SweepArgs {
     gl: bool,
     output: PathBuf,
     max_error: f64,
+    max_image_error: f64,
+    no_images: bool,
+    references: Option<PathBuf>,
+    reference_size: Option<String>,
+    reference_spp: Option<u32>,
     device: DeviceArgs,
 }
 
@@ -955,6 +990,12 @@ fn bench_sweep(a: SweepArgs) -> anyhow::Result<()> {
     let selection = DeviceSelection::from_flag_or_env(a.device.device)?;
     if a.repeat == 0 {
         bail!("--repeat must be at least 1");
+    }
+    if a.max_image_error.is_nan() || a.max_image_error <= 0.0 {
+        bail!(
+            "--max-image-error {}: expected a positive bound",
+            a.max_image_error
+        );
     }
     if a.max_error.is_nan() || a.max_error <= 0.0 {
         bail!("--max-error {}: expected a positive bound", a.max_error);
@@ -1025,6 +1066,13 @@ fn bench_sweep(a: SweepArgs) -> anyhow::Result<()> {
             selection,
             out: a.output.clone(),
             max_h_error: a.max_error,
+            max_image_error: a.max_image_error,
+            references: Some(bench::images::ReferenceOptions {
+                dir: a.output.join("reference"),
+                width: 320,
+                height: 240,
+                spp: 2048,
+            }),
         }
     };
     if !a.patches.is_empty() {
@@ -1063,6 +1111,30 @@ fn bench_sweep(a: SweepArgs) -> anyhow::Result<()> {
         options.repeat = a.repeat.min(2);
         options.gl = a.gl;
         options.max_h_error = a.max_error;
+        options.max_image_error = a.max_image_error.min(options.max_image_error);
+    }
+    if a.no_images {
+        options.references = None;
+    } else if let Some(r) = options.references.as_mut() {
+        if let Some(dir) = &a.references {
+            r.dir = dir.clone();
+        }
+        if let Some(size) = &a.reference_size {
+            let parsed = size
+                .split_once('x')
+                .and_then(|(w, h)| Some((w.parse::<usize>().ok()?, h.parse::<usize>().ok()?)))
+                .filter(|&(w, h)| (1..=4096).contains(&w) && (1..=4096).contains(&h));
+            let Some((w, h)) = parsed else {
+                bail!("--reference-size {size:?}: expected WxH, each 1..=4096");
+            };
+            (r.width, r.height) = (w, h);
+        }
+        if let Some(spp) = a.reference_spp {
+            if spp < 2 || spp % 2 == 1 {
+                bail!("--reference-spp {spp}: expected an even count of at least 2");
+            }
+            r.spp = spp;
+        }
     }
     let start = std::time::Instant::now();
     let points = bench::sweep::run(&options, &mut |line| eprintln!("[sweep] {line}"))?;

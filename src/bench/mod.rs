@@ -8,6 +8,7 @@ pub mod accuracy;
 pub mod compression;
 pub mod form_factor;
 pub mod frame;
+pub mod images;
 pub mod stress;
 pub mod svg_plot;
 pub mod sweep;

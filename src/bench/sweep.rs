@@ -31,6 +31,7 @@
 use super::frame::{
     best, classic, exact_infinite, exact_series, in_matrix_order, rel_rms, time_frame,
 };
+use super::images::{ReferenceOptions, SceneImages};
 use crate::bake::reorder::ReorderMethod;
 use crate::bake::transfer::Bounces;
 use crate::bake::voxelize::Resolution;
@@ -40,6 +41,7 @@ use crate::bakefile::codec::CodecKind;
 use crate::core::compute::DeviceSelection;
 use crate::core::scene;
 use crate::core::scene_config::SceneConfig;
+use crate::mitsuba::ImageError;
 use crate::runtime::{Runtime, RuntimeOptions};
 use anyhow::Context;
 use serde::Serialize;
@@ -73,6 +75,11 @@ pub struct SweepOptions {
     pub out: PathBuf,
     /// The bound on a baseline point's error (module doc).
     pub max_h_error: f64,
+    /// Image errors against Mitsuba 3 (`None`: not measured).
+    pub references: Option<ReferenceOptions>,
+    /// The bound on a baseline point's indirect image error against
+    /// Mitsuba 3 (noise removed).
+    pub max_image_error: f64,
 }
 
 impl SweepOptions {
@@ -89,8 +96,15 @@ impl SweepOptions {
             repeat: 2,
             gl: true,
             selection,
+            references: Some(ReferenceOptions {
+                dir: out.join("reference"),
+                width: 160,
+                height: 120,
+                spp: 512,
+            }),
             out,
             max_h_error: 0.05,
+            max_image_error: 0.15,
         }
     }
 }
@@ -130,6 +144,12 @@ pub struct SweepPoint {
     pub classic_inf_passes: Option<usize>,
     pub classic_inf_ms: Option<f64>,
     pub speedup_vs_classic: f64,
+    /// The final and indirect views against Mitsuba 3's `∞`-bounce images
+    /// (for a `k`-bounce point this includes the bounces it leaves out).
+    pub image_final: Option<ImageError>,
+    pub image_indirect: Option<ImageError>,
+    /// Samples per pixel of the reference.
+    pub reference_spp: Option<u32>,
     pub all_finite: bool,
 }
 
@@ -154,6 +174,7 @@ fn point(
     varied: &str,
     cfg: BakeConfig,
     options: &SweepOptions,
+    images: Option<&mut SceneImages>,
 ) -> anyhow::Result<SweepPoint> {
     reset_peak_rss();
     let start = Instant::now();
@@ -225,6 +246,18 @@ fn point(
     };
     let all_finite = b0.iter().chain(&h).flatten().all(|v| v.is_finite())
         && exact.iter().flatten().all(|v| v.is_finite());
+    let (image_final, image_indirect, reference_spp) = match images {
+        Some(im) => {
+            let (f, i) = super::images::errors(im, &rt, config)?;
+            (Some(f), Some(i), Some(im.reference.spp))
+        }
+        None => (None, None, None),
+    };
+    let all_finite = all_finite
+        && [image_final, image_indirect]
+            .iter()
+            .flatten()
+            .all(|e| e.rel_rms.is_finite() && e.raw_rel_rms.is_finite());
     let (gl_pass_ms, gl_frame_ms, gl_device) = if options.gl {
         gl_frame(&rt, config, options.repeat)
     } else {
@@ -272,6 +305,9 @@ fn point(
         classic_inf_ms,
         // Against the gather over the lit columns: what a frame runs.
         speedup_vs_classic: t_classic / t_lit.max(1e-12),
+        image_final,
+        image_indirect,
+        reference_spp,
         all_finite,
     })
 }
@@ -340,6 +376,15 @@ pub fn run(
     let mut points = Vec::new();
     for s in &options.scenes {
         let config = crate::core::scene_config::load(&s.camera_lights)?;
+        let mut images = match &options.references {
+            Some(r) => Some(super::images::reference(
+                &s.obj,
+                &s.camera_lights,
+                r,
+                progress,
+            )?),
+            None => None,
+        };
         for &patches in &options.patches {
             let mut variants: Vec<(String, BakeConfig)> = Vec::new();
             let base = || {
@@ -372,9 +417,10 @@ pub fn run(
                     .into_owned();
                 cfg.output = Some(bakes.join(format!("{stem}-{patches}-{k}.rad")));
                 progress(&format!("{stem}, {patches} patches, {varied} ({})", k + 1));
-                let p = point(s, &config, patches, &varied, cfg, options).with_context(|| {
-                    format!("{} at {patches} patches, {varied}", s.obj.display())
-                })?;
+                let p = point(s, &config, patches, &varied, cfg, options, images.as_mut())
+                    .with_context(|| {
+                        format!("{} at {patches} patches, {varied}", s.obj.display())
+                    })?;
                 progress(&format!(
                     "  n {}, {} bounces, {}, {:.3} B/entry: H error {:.3} %, frame {:.2} ms, gather {:.2} ms, classic {} bounces {:.2} ms ({:.1}×)",
                     p.patches,
@@ -388,6 +434,16 @@ pub fn run(
                     p.classic_ms,
                     p.speedup_vs_classic
                 ));
+                if let (Some(f), Some(i)) = (p.image_final, p.image_indirect) {
+                    progress(&format!(
+                        "  vs Mitsuba 3: final {:.2} %, indirect {:.2} % (bias {:+.1} %; reference noise {:.2} % / {:.2} %)",
+                        100.0 * f.rel_rms,
+                        100.0 * i.rel_rms,
+                        100.0 * i.bias,
+                        100.0 * f.noise,
+                        100.0 * i.noise
+                    ));
+                }
                 points.push(p);
             }
         }
@@ -402,16 +458,32 @@ pub fn run(
             "frame time against error of H",
             "relative RMS error of H vs the exact f64 solution",
             "time per frame (ms)",
-            &pareto_series(&points, |p| p.cpu_frame_ms, true),
+            &pareto_series(&points, |p| Some(p.h_error), |p| p.cpu_frame_ms, true),
         ),
     )?;
+    if points.iter().any(|p| p.image_indirect.is_some()) {
+        std::fs::write(
+            options.out.join("pareto_image.svg"),
+            super::svg_plot::scatter(
+                "frame time against image error (indirect view vs Mitsuba 3)",
+                "relative RMS error of the indirect image vs Mitsuba 3 (∞ bounces)",
+                "time per frame (ms)",
+                &pareto_series(
+                    &points,
+                    |p| p.image_indirect.map(|e| e.rel_rms.max(1e-4)),
+                    |p| p.cpu_frame_ms,
+                    false,
+                ),
+            ),
+        )?;
+    }
     std::fs::write(
         options.out.join("pareto_bytes.svg"),
         super::svg_plot::scatter(
             "matrix size against error of H",
             "relative RMS error of H vs the exact f64 solution",
             "bytes per matrix entry",
-            &pareto_series(&points, |p| p.bytes_per_entry, false),
+            &pareto_series(&points, |p| Some(p.h_error), |p| p.bytes_per_entry, false),
         ),
     )?;
     let mut failures = Vec::new();
@@ -421,6 +493,17 @@ pub fn run(
                 "{} {} {}: a non-finite value",
                 p.scene, p.patches, p.varied
             ));
+        }
+        if let (true, Some(e)) = (p.varied == "baseline", p.image_indirect) {
+            if !(e.rel_rms <= options.max_image_error) {
+                failures.push(format!(
+                    "{} at {} patches, baseline: indirect image error {:.2} % against Mitsuba 3 above the bound {:.1} %",
+                    p.scene,
+                    p.patches,
+                    100.0 * e.rel_rms,
+                    100.0 * options.max_image_error
+                ));
+            }
         }
         if p.varied == "baseline" && !(p.h_error <= options.max_h_error) {
             failures.push(format!(
@@ -445,6 +528,7 @@ pub fn run(
 /// setting, and (for time) classic radiosity's.
 fn pareto_series(
     points: &[SweepPoint],
+    x: impl Fn(&SweepPoint) -> Option<f64>,
     y: impl Fn(&SweepPoint) -> f64,
     classic_too: bool,
 ) -> Vec<super::svg_plot::Series> {
@@ -458,12 +542,12 @@ fn pareto_series(
         let pts: Vec<(f64, f64, String)> = points
             .iter()
             .filter(|p| p.varied == varied)
-            .map(|p| {
-                (
-                    p.h_error,
+            .filter_map(|p| {
+                Some((
+                    x(p)?,
                     y(p),
                     format!("{} {} {}", p.scene, p.patches, label(p)),
-                )
+                ))
             })
             .collect();
         if !pts.is_empty() {
@@ -517,11 +601,11 @@ fn markdown(points: &[SweepPoint], options: &SweepOptions) -> String {
     );
     let _ = writeln!(
         s,
-        "| scene | n | varied | bounces | codec | reorder | bake s | peak RSS MB | B/entry | file KB | H error | CPU frame | direct | gather all / lit | classic (k): ms, error | speed-up | classic ∞: passes, ms | GL frame (shadow, direct, gather, shading) |"
+        "| scene | n | varied | bounces | codec | reorder | bake s | peak RSS MB | B/entry | file KB | H error | CPU frame | direct | gather all / lit | classic (k): ms, error | speed-up | classic ∞: passes, ms | GL frame (shadow, direct, gather, shading) | image vs Mitsuba: final, indirect (bias) |"
     );
     let _ = writeln!(
         s,
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for p in points {
         let gl = match (&p.gl_pass_ms, p.gl_frame_ms) {
@@ -537,9 +621,18 @@ fn markdown(points: &[SweepPoint], options: &SweepOptions) -> String {
             }
             _ => "not run".into(),
         };
+        let image = match (p.image_final, p.image_indirect) {
+            (Some(f), Some(i)) => format!(
+                "{:.2} %, {:.2} % ({:+.1} %)",
+                100.0 * f.rel_rms,
+                100.0 * i.rel_rms,
+                100.0 * i.bias
+            ),
+            _ => "—".into(),
+        };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {:.1} | {} | {:.3} | {} | {:.3} % | {:.2} | {:.2} | {:.2} / {:.2} | ({}) {:.2}, {:.2} % | {:.1}× | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {:.1} | {} | {:.3} | {} | {:.3} % | {:.2} | {:.2} | {:.2} / {:.2} | ({}) {:.2}, {:.2} % | {:.1}× | {} | {} | {} |",
             p.scene,
             p.patches,
             p.varied,
@@ -563,14 +656,43 @@ fn markdown(points: &[SweepPoint], options: &SweepOptions) -> String {
                 (Some(k), Some(t)) => format!("{k}, {t:.2}"),
                 _ => "—".into(),
             },
-            gl
+            gl,
+            image
         );
     }
     let _ = writeln!(
         s,
         "\n![frame time against error](pareto_time.svg)\n\n![bytes per entry against error](pareto_bytes.svg)\n"
     );
+    if let Some(r) = &options.references {
+        let _ = writeln!(
+            s,
+            "Images: the final and indirect views of each scene's camera against Mitsuba 3 (scalar_rgb, ∞ bounces, path tracer; `scripts/mitsuba-reference`, {} × {}), relative RMS over pixels and channels with the reference's own noise removed (two independent halves; `src/mitsuba/reference.rs`); bias = relative mean difference (negative: too dark). A k-bounce point is compared with the ∞ reference, so its error includes the bounces it leaves out.\n",
+            r.width, r.height
+        );
+        for (scene, noise, spp) in reference_noise(points) {
+            let _ = writeln!(s, "- {scene}: reference noise per pixel (relative RMS of the mean) final {:.2} %, indirect {:.2} % at {spp} samples per pixel", 100.0 * noise.0, 100.0 * noise.1);
+        }
+        let _ = writeln!(s, "\n![frame time against image error](pareto_image.svg)\n");
+    }
     s
+}
+
+/// Each scene's reference noise (final, indirect), once per scene.
+fn reference_noise(points: &[SweepPoint]) -> Vec<(String, (f64, f64), u32)> {
+    let mut out: Vec<(String, (f64, f64), u32)> = Vec::new();
+    for p in points {
+        if let (Some(f), Some(i)) = (p.image_final, p.image_indirect) {
+            if !out.iter().any(|(s, _, _)| s == &p.scene) {
+                out.push((
+                    p.scene.clone(),
+                    (f.noise, i.noise),
+                    p.reference_spp.unwrap_or(0),
+                ));
+            }
+        }
+    }
+    out
 }
 
 /// The CPU's model name.

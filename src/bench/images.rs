@@ -1,0 +1,132 @@
+//! Image errors of the sweep against Mitsuba 3 (DESIGN.md section 3,
+//! measure 4): the run time's final and indirect views of a scene's camera
+//! and lights against the path tracer's, which include everything the
+//! patches simplify (voxels, the surface map, bounces, the codec).
+//!
+//! The references come from `scripts/mitsuba-reference` (bounces `∞`,
+//! cached by a hash of the exported scene), run once per scene into
+//! `<references>/<scene>/` when not already there. Our pixels average
+//! several pixel-centre rays to match Mitsuba's box filter: `DIRECT_SS²`
+//! for the direct view (the emitter's sharp, bright edges dominate it),
+//! `INDIRECT_SS²` for the smooth indirect view; final = direct + indirect
+//! exactly (`ρ/π (D + H) + Le`), so the direct image is rendered once per
+//! scene. Errors are noise-corrected relative RMS
+//! ([`crate::mitsuba::reference`]).
+
+use crate::core::scene_config::SceneConfig;
+use crate::mitsuba::reference::downsample;
+use crate::mitsuba::{image_error, ImageError, Reference};
+use crate::runtime::render::{render, View};
+use crate::runtime::texture::Albedo;
+use crate::runtime::Runtime;
+use anyhow::Context;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Rays per pixel side for the direct view.
+const DIRECT_SS: usize = 8;
+/// Rays per pixel side for the indirect view.
+const INDIRECT_SS: usize = 4;
+
+/// How the sweep gets its references.
+#[derive(Clone, Debug)]
+pub struct ReferenceOptions {
+    /// Where each scene's reference lives (`<dir>/<scene stem>/`).
+    pub dir: PathBuf,
+    pub width: usize,
+    pub height: usize,
+    /// Samples per pixel of a reference made by the sweep.
+    pub spp: u32,
+}
+
+/// A scene's reference and our direct image at its size.
+pub struct SceneImages {
+    pub reference: Reference,
+    pub reference_dir: PathBuf,
+    direct: Option<Vec<[f32; 3]>>,
+}
+
+/// The reference of `obj` (with `camera_lights`), made by the script when
+/// `<dir>/<stem>/meta.json` does not exist yet.
+pub fn reference(
+    obj: &Path,
+    camera_lights: &Path,
+    options: &ReferenceOptions,
+    progress: &mut dyn FnMut(&str),
+) -> anyhow::Result<SceneImages> {
+    let stem = obj.file_stem().unwrap_or_default().to_string_lossy();
+    let dir = options.dir.join(stem.as_ref());
+    if !dir.join("meta.json").exists() {
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/mitsuba-reference");
+        progress(&format!(
+            "Mitsuba 3 reference of {} ({} × {}, {} spp): {}",
+            obj.display(),
+            options.width,
+            options.height,
+            options.spp,
+            script.display()
+        ));
+        let exe = std::env::current_exe().context("locating this program for the script")?;
+        let status = Command::new(&script)
+            .arg(obj)
+            .arg("--camera-lights")
+            .arg(camera_lights)
+            .arg("-o")
+            .arg(&dir)
+            .args(["--width", &options.width.to_string()])
+            .args(["--height", &options.height.to_string()])
+            .args(["--spp", &options.spp.to_string()])
+            .env("RADIOSITY", exe)
+            .status()
+            .with_context(|| format!("running {}", script.display()))?;
+        anyhow::ensure!(
+            status.success(),
+            "{} failed ({status}) for {}",
+            script.display(),
+            obj.display()
+        );
+    }
+    let reference = Reference::load(&dir)?;
+    anyhow::ensure!(
+        reference.final_.is_some(),
+        "{}: the reference has no final image (made with --views direct)",
+        dir.display()
+    );
+    Ok(SceneImages {
+        reference,
+        reference_dir: dir,
+        direct: None,
+    })
+}
+
+/// Errors of one point's final and indirect views (the runtime's last
+/// frame, `config`'s camera).
+pub fn errors(
+    images: &mut SceneImages,
+    rt: &Runtime,
+    config: &SceneConfig,
+) -> anyhow::Result<(ImageError, ImageError)> {
+    let (w, h) = (images.reference.width, images.reference.height);
+    let albedo = Albedo::new(&rt.scene);
+    let view = |v: View, ss: usize| {
+        let (img, _) = render(rt, config, v, w * ss, h * ss, &albedo);
+        downsample(&img.radiance, w * ss, h * ss, ss)
+    };
+    let direct = images
+        .direct
+        .get_or_insert_with(|| view(View::Direct, DIRECT_SS));
+    let indirect = view(View::Indirect, INDIRECT_SS);
+    let fin: Vec<[f32; 3]> = direct
+        .iter()
+        .zip(&indirect)
+        .map(|(d, i)| std::array::from_fn(|c| d[c] + i[c]))
+        .collect();
+    let r = &images.reference;
+    let (Some(final_), Some(indirect_ref)) = (&r.final_, &r.indirect) else {
+        anyhow::bail!("{}: no final image", images.reference_dir.display());
+    };
+    Ok((
+        image_error(&fin, final_),
+        image_error(&indirect, indirect_ref),
+    ))
+}
