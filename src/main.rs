@@ -173,7 +173,7 @@ enum BenchCommand {
         #[arg(long, value_name = "WxH")]
         reference_size: Option<String>,
         /// Samples per pixel of a reference made by the sweep (default
-        /// 2048; quick 512).
+        /// 1024; quick 512).
         #[arg(long)]
         reference_spp: Option<u32>,
         #[command(flatten)]
@@ -1071,7 +1071,7 @@ fn bench_sweep(a: SweepArgs) -> anyhow::Result<()> {
                 dir: a.output.join("reference"),
                 width: 320,
                 height: 240,
-                spp: 2048,
+                spp: 1024,
             }),
         }
     };
