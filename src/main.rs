@@ -117,6 +117,25 @@ enum BenchCommand {
         #[command(flatten)]
         device: DeviceArgs,
     },
+    /// What each scene does not need (patches, pairs, zero tiles, identical
+    /// channels, zero columns, unchanged frames) and what skipping it
+    /// saves, measured by turning each off in the same run.
+    Skips {
+        /// Scenes: SCENE.obj or SCENE.obj=LIGHTS.json (default: the Cornell
+        /// box, the interior, the closed cube, and Sponza when present).
+        #[arg(long, value_delimiter = ',')]
+        scenes: Vec<String>,
+        /// Target patch count of each bake.
+        #[arg(long, default_value_t = 2000)]
+        patches: usize,
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        /// The report's directory.
+        #[arg(short, long, default_value = "docs/skips")]
+        output: PathBuf,
+        #[command(flatten)]
+        device: DeviceArgs,
+    },
     /// Run time against error over scenes, patch counts, bounces, codecs
     /// and reorderings, with classic radiosity and the GL frame in the same
     /// run: sweep.json, sweep.md and log-log Pareto plots (SVG) in -o DIR.
@@ -684,6 +703,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 print!("{table}");
                 Ok(())
             }
+            BenchCommand::Skips {
+                scenes,
+                patches,
+                repeat,
+                output,
+                device,
+            } => bench_skips(scenes, patches, repeat, output, device),
             BenchCommand::Sweep {
                 quick,
                 scenes,
@@ -1000,25 +1026,6 @@ fn bench_sweep(a: SweepArgs) -> anyhow::Result<()> {
     if a.max_error.is_nan() || a.max_error <= 0.0 {
         bail!("--max-error {}: expected a positive bound", a.max_error);
     }
-    let scene_of = |s: &str| -> anyhow::Result<SweepScene> {
-        let (obj, json) = match s.split_once('=') {
-            Some((o, j)) => (PathBuf::from(o), PathBuf::from(j)),
-            None => (PathBuf::from(s), PathBuf::from(s).with_extension("json")),
-        };
-        if !obj.exists() {
-            bail!("--scenes: {} does not exist", obj.display());
-        }
-        if !json.exists() {
-            bail!(
-                "--scenes: the camera and lights {} do not exist (give SCENE.obj=LIGHTS.json)",
-                json.display()
-            );
-        }
-        Ok(SweepScene {
-            obj,
-            camera_lights: json,
-        })
-    };
     let bundled = |name: &str| -> anyhow::Result<SweepScene> {
         let obj = bundled_scene_path(name)?;
         Ok(SweepScene {
@@ -1033,20 +1040,10 @@ fn bench_sweep(a: SweepArgs) -> anyhow::Result<()> {
         if a.scenes.is_empty() {
             scenes.push(bundled("cornell_box")?);
             scenes.push(bundled("interior")?);
-            let sponza = PathBuf::from("../shared/scenes/sponza/sponza.obj");
-            let lights = bundled_scene_path("cornell_box")?
-                .parent()
-                .and_then(|p| p.parent())
-                .map(|p| p.join("external").join("sponza.json"));
-            if let (true, Some(l)) = (sponza.exists(), lights) {
-                scenes.push(SweepScene {
-                    obj: sponza,
-                    camera_lights: l,
-                });
-            }
+            scenes.extend(sponza_scene());
         } else {
             for s in &a.scenes {
-                scenes.push(scene_of(s)?);
+                scenes.push(bench_scene(s)?);
             }
         }
         SweepOptions {
@@ -1144,6 +1141,83 @@ fn bench_sweep(a: SweepArgs) -> anyhow::Result<()> {
         start.elapsed().as_secs_f64()
     );
     println!("{}", options.out.join("sweep.md").display());
+    Ok(())
+}
+
+/// A scene argument of the benchmarks: SCENE.obj (lights in SCENE.json)
+/// or SCENE.obj=LIGHTS.json.
+fn bench_scene(s: &str) -> anyhow::Result<bench::sweep::SweepScene> {
+    let (obj, json) = match s.split_once('=') {
+        Some((o, j)) => (PathBuf::from(o), PathBuf::from(j)),
+        None => (PathBuf::from(s), PathBuf::from(s).with_extension("json")),
+    };
+    if !obj.exists() {
+        bail!("--scenes: {} does not exist", obj.display());
+    }
+    if !json.exists() {
+        bail!(
+            "--scenes: the camera and lights {} do not exist (give SCENE.obj=LIGHTS.json)",
+            json.display()
+        );
+    }
+    Ok(bench::sweep::SweepScene {
+        obj,
+        camera_lights: json,
+    })
+}
+
+/// Sponza by path with its camera and lights, when present.
+fn sponza_scene() -> Option<bench::sweep::SweepScene> {
+    let sponza = PathBuf::from("../shared/scenes/sponza/sponza.obj");
+    let lights = bundled_scene_path("cornell_box")
+        .ok()?
+        .parent()
+        .and_then(|p| p.parent())
+        .map(|p| p.join("external").join("sponza.json"))?;
+    sponza.exists().then_some(bench::sweep::SweepScene {
+        obj: sponza,
+        camera_lights: lights,
+    })
+}
+
+/// `radiosity bench skips`.
+fn bench_skips(
+    scenes: Vec<String>,
+    patches: usize,
+    repeat: usize,
+    output: PathBuf,
+    device: DeviceArgs,
+) -> anyhow::Result<()> {
+    if patches == 0 {
+        bail!("--patches must be at least 1");
+    }
+    if repeat == 0 {
+        bail!("--repeat must be at least 1");
+    }
+    let mut list = Vec::new();
+    if scenes.is_empty() {
+        for name in ["cornell_box", "interior", "closed_cube"] {
+            let obj = bundled_scene_path(name)?;
+            list.push(bench::sweep::SweepScene {
+                camera_lights: obj.with_extension("json"),
+                obj,
+            });
+        }
+        list.extend(sponza_scene());
+    } else {
+        for s in &scenes {
+            list.push(bench_scene(s)?);
+        }
+    }
+    let options = bench::skips::SkipsOptions {
+        scenes: list,
+        patches,
+        repeat,
+        selection: DeviceSelection::from_flag_or_env(device.device)?,
+        out: output,
+    };
+    bench::skips::run(&options, &mut |l| eprintln!("[skips] {l}"))?;
+    println!("{}", options.out.join("skips.md").display());
     Ok(())
 }
 

@@ -9,6 +9,7 @@ pub mod compression;
 pub mod form_factor;
 pub mod frame;
 pub mod images;
+pub mod skips;
 pub mod stress;
 pub mod svg_plot;
 pub mod sweep;
