@@ -169,6 +169,10 @@ enum BenchCommand {
         /// Leave out the GL frame.
         #[arg(long)]
         no_gl: bool,
+        /// Only the baseline bakes (no bounce, codec or reordering
+        /// variants).
+        #[arg(long)]
+        baseline_only: bool,
         /// The report's directory.
         #[arg(short, long, default_value = "docs/sweep")]
         output: PathBuf,
@@ -719,6 +723,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 reorders,
                 repeat,
                 no_gl,
+                baseline_only,
                 output,
                 max_error,
                 max_image_error,
@@ -736,6 +741,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 reorders,
                 repeat,
                 gl: !no_gl,
+                baseline_only,
                 output,
                 max_error,
                 max_image_error,
@@ -980,6 +986,7 @@ struct SweepArgs {
     reorders: Vec<String>,
     repeat: usize,
     gl: bool,
+    baseline_only: bool,
     output: PathBuf,
     max_error: f64,
     max_image_error: f64,
@@ -1109,6 +1116,11 @@ fn bench_sweep(a: SweepArgs) -> anyhow::Result<()> {
         options.gl = a.gl;
         options.max_h_error = a.max_error;
         options.max_image_error = a.max_image_error.min(options.max_image_error);
+    }
+    if a.baseline_only {
+        options.bounces.clear();
+        options.codecs.clear();
+        options.reorders.clear();
     }
     if a.no_images {
         options.references = None;

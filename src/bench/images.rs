@@ -18,6 +18,7 @@ use crate::mitsuba::reference::downsample;
 use crate::mitsuba::{image_error, ImageError, Reference};
 use crate::runtime::render::{render, View};
 use crate::runtime::texture::Albedo;
+use crate::runtime::tonemap::{auto_exposure, to_srgb8};
 use crate::runtime::Runtime;
 use anyhow::Context;
 use std::path::{Path, PathBuf};
@@ -100,11 +101,13 @@ pub fn reference(
 }
 
 /// Errors of one point's final and indirect views (the runtime's last
-/// frame, `config`'s camera).
+/// frame, `config`'s camera); with `png`, also writes the four images side
+/// by side there ([`comparison_png`]).
 pub fn errors(
     images: &mut SceneImages,
     rt: &Runtime,
     config: &SceneConfig,
+    png: Option<&Path>,
 ) -> anyhow::Result<(ImageError, ImageError)> {
     let (w, h) = (images.reference.width, images.reference.height);
     let albedo = Albedo::new(&rt.scene);
@@ -125,8 +128,62 @@ pub fn errors(
     let (Some(final_), Some(indirect_ref)) = (&r.final_, &r.indirect) else {
         anyhow::bail!("{}: no final image", images.reference_dir.display());
     };
+    if let Some(path) = png {
+        let mean = |h: &[Vec<[f32; 3]>; 2]| -> Vec<[f32; 3]> {
+            h[0].iter()
+                .zip(&h[1])
+                .map(|(a, b)| std::array::from_fn(|c| 0.5 * (a[c] + b[c])))
+                .collect()
+        };
+        comparison_png(
+            path,
+            w,
+            h,
+            [&fin, &mean(final_), &indirect, &mean(indirect_ref)],
+        )?;
+    }
     Ok((
         image_error(&fin, final_),
         image_error(&indirect, indirect_ref),
     ))
+}
+
+/// Writes a 2 × 2 grid (`w × h` each): ours and Mitsuba's final view on
+/// top, ours and Mitsuba's indirect view below; each row tone mapped with
+/// the exposure of Mitsuba's image (runtime/tonemap.rs), so brightness
+/// differences show.
+pub fn comparison_png(
+    path: &Path,
+    w: usize,
+    h: usize,
+    [ours_final, ref_final, ours_indirect, ref_indirect]: [&[[f32; 3]]; 4],
+) -> anyhow::Result<()> {
+    let mut rgb = vec![0u8; 4 * w * h * 3];
+    let rows = [
+        (ours_final, ref_final, auto_exposure(ref_final.iter())),
+        (
+            ours_indirect,
+            ref_indirect,
+            auto_exposure(ref_indirect.iter()),
+        ),
+    ];
+    for (row, (ours, reference, exposure)) in rows.into_iter().enumerate() {
+        for (col, img) in [ours, reference].into_iter().enumerate() {
+            for y in 0..h {
+                for x in 0..w {
+                    let p = to_srgb8(img[y * w + x], exposure);
+                    let (gy, gx) = (row * h + y, col * w + x);
+                    rgb[(gy * 2 * w + gx) * 3..][..3].copy_from_slice(&p);
+                }
+            }
+        }
+    }
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    image::RgbImage::from_raw(2 * w as u32, 2 * h as u32, rgb)
+        .context("image size")?
+        .save(path)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
 }

@@ -112,7 +112,12 @@ pub fn run(
     std::fs::create_dir_all(&bakes)?;
     let mut out = Vec::new();
     for s in &options.scenes {
-        let stem = s.obj.file_stem().unwrap_or_default().to_string_lossy().into_owned();
+        let stem = s
+            .obj
+            .file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
         progress(&format!("{stem}: baking at {} patches", options.patches));
         let r = scene_skips(s, &stem, options, &bakes)
             .with_context(|| format!("{}", s.obj.display()))?;
@@ -216,7 +221,10 @@ fn scene_skips(
     r.frame_full_ms = 1e3 * t_full;
     rt.frame(&config.lights, &config.emission);
     let (st, t_unchanged) = best(repeat, || rt.frame(&config.lights, &config.emission));
-    anyhow::ensure!(st.unchanged, "a repeated frame was not recognised as unchanged");
+    anyhow::ensure!(
+        st.unchanged,
+        "a repeated frame was not recognised as unchanged"
+    );
     r.frame_unchanged_ms = 1e3 * t_unchanged;
     if config.lights.len() >= 2 {
         // Move the last light back and forth by a small step: one term
@@ -262,7 +270,13 @@ fn scene_skips(
             .collect();
         let nudged: Vec<f32> = grey
             .iter()
-            .map(|&v| if v > 0.0 { f32::from_bits(v.to_bits() + 1) } else { v })
+            .map(|&v| {
+                if v > 0.0 {
+                    f32::from_bits(v.to_bits() + 1)
+                } else {
+                    v
+                }
+            })
             .collect();
         let g = [&grey[..], &grey[..], &grey[..]];
         let forced = [&grey[..], &grey[..], &nudged[..]];

@@ -248,7 +248,12 @@ fn point(
         && exact.iter().flatten().all(|v| v.is_finite());
     let (image_final, image_indirect, reference_spp) = match images {
         Some(im) => {
-            let (f, i) = super::images::errors(im, &rt, config)?;
+            let png = options
+                .out
+                .join("images")
+                .join(format!("{name}_{n}_{varied}.png"));
+            let png = (varied == "baseline").then_some(png.as_path());
+            let (f, i) = super::images::errors(im, &rt, config, png)?;
             (Some(f), Some(i), Some(im.reference.spp))
         }
         None => (None, None, None),
