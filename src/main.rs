@@ -181,7 +181,7 @@ enum BenchCommand {
         max_error: f64,
         /// The bound on a baseline point's indirect image error against
         /// Mitsuba 3 (noise removed).
-        #[arg(long, default_value_t = 0.25)]
+        #[arg(long, default_value_t = 0.5)]
         max_image_error: f64,
         /// Leave out the image errors against Mitsuba 3.
         #[arg(long)]

@@ -18,7 +18,9 @@
 //! `F` (what the transfer and codec add), the furnace's mean and worst
 //! relative error against `E / (1 − ρ)` (what the form factors add), the
 //! dark room's largest `H` against the lit room's mean, the range of `H`,
-//! and any non-finite value (there must be none: the run fails).
+//! and any non-finite value (there must be none: the run fails). Last,
+//! the memory limit: the largest default bake that fits this machine, and
+//! a bake asked for twice that refused before anything is allocated.
 
 use super::frame::{exact_infinite, in_matrix_order, rel_rms};
 use crate::bake::voxelize::Resolution;
@@ -239,6 +241,8 @@ pub fn run(
         let row = run_case(c, &dir, patches, selection).with_context(|| c.name.clone())?;
         rows.push(row);
     }
+    let limit = memory_limit(&root, selection)?;
+    progress(&limit);
     let _ = std::fs::remove_dir_all(&root);
     let mut s = String::new();
     let _ = writeln!(
@@ -264,6 +268,7 @@ pub fn run(
             r.seconds
         );
     }
+    let _ = writeln!(s, "\n{limit}");
     let bad: Vec<&StressRow> = rows.iter().filter(|r| r.non_finite > 0).collect();
     if !bad.is_empty() {
         anyhow::bail!(
@@ -275,4 +280,44 @@ pub fn run(
         );
     }
     Ok(s)
+}
+
+/// The memory limit of this machine for a default bake: the largest patch
+/// count that fits (`bake::budget`), and a bake asked for twice that (or
+/// past the file format's limit) refused before anything is voxelized or
+/// allocated, with a message that names the limit. Running at the limit
+/// itself takes hours on a CPU device; this checks that going past it is
+/// a clear error, never an abort.
+fn memory_limit(root: &std::path::Path, selection: DeviceSelection) -> anyhow::Result<String> {
+    use crate::bake::budget;
+    let gpu = crate::core::compute::Gpu::new(selection)?;
+    let device = budget::Device::OpenCl {
+        info: gpu.info(),
+        matrices: crate::bake::transfer::cl_matrices(&Default::default()),
+    };
+    let available = budget::host_available();
+    let largest = available.map(|a| budget::largest_fitting(a, device, false));
+    drop(gpu);
+    let ask = largest.map_or(budget::MAX_PATCHES_FORMAT + 1, |l| {
+        (2 * l.max(1)).min(budget::MAX_PATCHES_FORMAT + 1)
+    });
+    std::fs::create_dir_all(root)?;
+    let obj = root.join("limit.obj");
+    std::fs::write(
+        &obj,
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n",
+    )?;
+    let mut cfg = BakeConfig::new(obj, Resolution::Patches(ask));
+    cfg.compute = ComputeChoice::OpenCl(selection);
+    let start = std::time::Instant::now();
+    let refused = match bake::run(&cfg, &mut |_| {}) {
+        Ok(_) => anyhow::bail!("a bake of {ask} patches, past the memory limit, was not refused"),
+        Err(e) => format!("{e:#}"),
+    };
+    Ok(format!(
+        "Memory limit: host memory available {}, largest default bake that fits about {} patches; a bake of {ask} patches is refused in {:.2} s, before voxelizing: \"{refused}\"",
+        available.map_or("unknown".into(), |a| format!("{:.1} GB", a as f64 / 1e9)),
+        largest.map_or("unknown".into(), |l| l.to_string()),
+        start.elapsed().as_secs_f64()
+    ))
 }

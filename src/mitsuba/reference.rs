@@ -250,7 +250,14 @@ pub fn image_error(ours: &[[f32; 3]], halves: &[Vec<[f32; 3]>; 2]) -> ImageError
         }
     }
     if !(r2 > 0.0) {
-        return ImageError::default();
+        // A black reference: exact only if ours is black too.
+        let e = if d2 > 0.0 { f64::INFINITY } else { 0.0 };
+        return ImageError {
+            rel_rms: e,
+            raw_rel_rms: e,
+            noise: 0.0,
+            bias: e,
+        };
     }
     ImageError {
         rel_rms: ((d2 - n2).max(0.0) / r2).sqrt(),
@@ -322,6 +329,9 @@ mod tests {
         let e = image_error(&exact, &halves);
         assert!((e.noise - 0.3 / 2f64.sqrt()).abs() < 0.01, "{e:?}");
         assert!(e.rel_rms < 0.02, "{e:?}");
+        let black = [vec![[0.0f32; 3]; 4], vec![[0.0f32; 3]; 4]];
+        assert_eq!(image_error(&[[0.0; 3]; 4], &black).rel_rms, 0.0);
+        assert!(image_error(&[[0.1; 3]; 4], &black).rel_rms.is_infinite());
         let bright = vec![[1.1f32; 3]; n];
         let e = image_error(&bright, &halves);
         assert!((e.rel_rms - 0.1).abs() < 0.01, "{e:?}");
