@@ -101,3 +101,13 @@ pub fn shell_command_line(args: &[String]) -> String {
         .collect::<Vec<_>>()
         .join(" ")
 }
+
+/// Creates a report's directory `out` and a fresh temporary directory for
+/// its bakes (`radiosity-<tag>-<pid>`), returned.
+pub(crate) fn report_dirs(out: &std::path::Path, tag: &str) -> anyhow::Result<std::path::PathBuf> {
+    use anyhow::Context;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let bakes = std::env::temp_dir().join(format!("radiosity-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&bakes).with_context(|| format!("creating {}", bakes.display()))?;
+    Ok(bakes)
+}

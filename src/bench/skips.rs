@@ -106,10 +106,7 @@ pub fn run(
     options: &SkipsOptions,
     progress: &mut dyn FnMut(&str),
 ) -> anyhow::Result<Vec<SceneSkips>> {
-    std::fs::create_dir_all(&options.out)
-        .with_context(|| format!("creating {}", options.out.display()))?;
-    let bakes = std::env::temp_dir().join(format!("radiosity-skips-{}", std::process::id()));
-    std::fs::create_dir_all(&bakes)?;
+    let bakes = super::report_dirs(&options.out, "skips")?;
     let mut out = Vec::new();
     for s in &options.scenes {
         let stem = s

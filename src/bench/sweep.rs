@@ -373,11 +373,8 @@ pub fn run(
     options: &SweepOptions,
     progress: &mut dyn FnMut(&str),
 ) -> anyhow::Result<Vec<SweepPoint>> {
-    std::fs::create_dir_all(&options.out)
-        .with_context(|| format!("creating {}", options.out.display()))?;
     // The bakes are written (their size is measured) and removed.
-    let bakes = std::env::temp_dir().join(format!("radiosity-sweep-{}", std::process::id()));
-    std::fs::create_dir_all(&bakes)?;
+    let bakes = super::report_dirs(&options.out, "sweep")?;
     let mut points = Vec::new();
     for s in &options.scenes {
         let config = crate::core::scene_config::load(&s.camera_lights)?;

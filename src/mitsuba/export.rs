@@ -283,7 +283,8 @@ fn lights_xml(lights: &[Light]) -> String {
             } => {
                 // Any up vector not parallel to the axis: the profile is
                 // symmetric about it.
-                let up = if direction[1].abs() > 0.9 * crate::core::math::norm(direction.map(f64::from)) as f32 {
+                let len = crate::core::math::norm(direction.map(f64::from)) as f32;
+                let up = if direction[1].abs() > 0.9 * len {
                     [1.0, 0.0, 0.0]
                 } else {
                     [0.0, 1.0, 0.0]
