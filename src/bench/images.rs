@@ -44,6 +44,8 @@ pub struct ReferenceOptions {
 pub struct SceneImages {
     pub reference: Reference,
     pub reference_dir: PathBuf,
+    /// The albedo textures, decoded once per scene (not per point).
+    albedo: Option<Albedo>,
     direct: Option<Vec<[f32; 3]>>,
 }
 
@@ -96,6 +98,7 @@ pub fn reference(
     Ok(SceneImages {
         reference,
         reference_dir: dir,
+        albedo: None,
         direct: None,
     })
 }
@@ -110,9 +113,9 @@ pub fn errors(
     png: Option<&Path>,
 ) -> anyhow::Result<(ImageError, ImageError)> {
     let (w, h) = (images.reference.width, images.reference.height);
-    let albedo = Albedo::new(&rt.scene);
+    let albedo = images.albedo.get_or_insert_with(|| Albedo::new(&rt.scene));
     let view = |v: View, ss: usize| {
-        let (img, _) = render(rt, config, v, w * ss, h * ss, &albedo);
+        let (img, _) = render(rt, config, v, w * ss, h * ss, albedo);
         downsample(&img.radiance, w * ss, h * ss, ss)
     };
     let direct = images

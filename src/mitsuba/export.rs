@@ -110,10 +110,12 @@ pub fn export(
     };
     let mut shapes = String::new();
     let mut emitters = String::new();
-    for (m, mat) in scene.materials.iter().enumerate() {
-        let tris: Vec<usize> = (0..scene.triangles.len())
-            .filter(|&t| scene.triangle_material[t] as usize == m)
-            .collect();
+    // Triangles by material, in one pass.
+    let mut by_material = vec![Vec::new(); scene.materials.len()];
+    for (t, &m) in scene.triangle_material.iter().enumerate() {
+        by_material[m as usize].push(t);
+    }
+    for ((m, mat), tris) in scene.materials.iter().enumerate().zip(by_material) {
         if tris.is_empty() {
             continue;
         }
