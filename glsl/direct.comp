@@ -17,6 +17,9 @@ layout(std430, binding = 3) readonly buffer Emission { float emission[]; }; // 3
 layout(std430, binding = 4) writeonly buffer D { float d_out[]; };     // 3 n, channel-major
 layout(std430, binding = 5) writeonly buffer B0 { float b0_out[]; };   // 3 n, channel-major
 layout(std430, binding = 6) buffer Active { uint tile_active[]; };     // per tile column
+// D at each lit point, for the near-field correction (near_field.comp):
+// channel c, patch j, point s at c * n * samples + j * samples + s.
+layout(std430, binding = 7) writeonly buffer DPoints { float d_points[]; };
 
 uniform uint n;
 uniform uint samples;
@@ -29,7 +32,9 @@ void main() {
         uint i = 3u * (j * uint(SAMPLES_PER_PATCH) + s);
         vec3 x = vec3(sample_position[i], sample_position[i + 1u], sample_position[i + 2u]);
         vec3 nn = vec3(sample_normal[i], sample_normal[i + 1u], sample_normal[i + 2u]);
-        d += direct_irradiance(x, nn);
+        vec3 ds = direct_irradiance(x, nn);
+        for (uint c = 0u; c < 3u; c++) d_points[(c * n + j) * samples + s] = ds[c];
+        d += ds;
     }
     d /= float(samples);
     bool any_light = false;

@@ -227,6 +227,14 @@ enum BenchCommand {
         /// Print JSON.
         #[arg(long)]
         json: bool,
+        /// Also write one CSV row per patch (centre, normal, area, H, the
+        /// reference and its standard error, B0, D) to this file.
+        #[arg(long, value_name = "FILE.csv")]
+        per_patch: Option<PathBuf>,
+        /// Leave out the bake's near-field correction (to measure what it
+        /// does).
+        #[arg(long)]
+        no_near_field: bool,
         #[command(flatten)]
         device: DeviceArgs,
     },
@@ -470,6 +478,11 @@ struct BakeArgs {
     /// Rays per patch of the rays method (16..=1048576, default 16384).
     #[arg(long, value_name = "N")]
     ff_rays_per_patch: Option<u32>,
+    /// Rays per patch of the near-field correction (0..=65520; 0: none):
+    /// the first reflection from a close neighbour uses the part of it the
+    /// patch sees, not its mean (docs/accuracy.md).
+    #[arg(long, value_name = "N", default_value_t = radiosity::bake::near_field::DEFAULT_RAYS)]
+    near_field_rays: u32,
     /// Form-factor emitter samples per side, contour method (1..=16, default 4).
     #[arg(long)]
     ff_samples: Option<u32>,
@@ -593,6 +606,7 @@ impl BakeArgs {
             codec,
             error_lights: self.error_lights,
             two_sided: self.two_sided,
+            near_field_rays: self.near_field_rays,
             output: self.output,
             export: self.export,
         };
@@ -613,6 +627,7 @@ fn flag_of(option: &str) -> Option<&'static str> {
         "form-factor samples per side" => "--ff-samples",
         "form-factor rays per pair" => "--ff-rays",
         "form-factor rays per patch" => "--ff-rays-per-patch",
+        "near-field rays per patch" => "--near-field-rays",
         "bounces" => "--bounces",
         _ => return None,
     })
@@ -677,6 +692,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 points,
                 first_reflection,
                 json,
+                per_patch,
+                no_near_field,
                 device,
             } => {
                 use radiosity::bakefile::baked::{resolve_scene_path, Baked};
@@ -690,7 +707,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 } else {
                     None
                 };
-                let (report, text) = bench::accuracy::run(&bake, &config, paths, points, sel)?;
+                let (report, text) = bench::accuracy::run(
+                    &bake,
+                    &config,
+                    paths,
+                    points,
+                    sel,
+                    per_patch.as_deref(),
+                    !no_near_field,
+                )?;
                 if json {
                     println!("{}", serde_json::to_string_pretty(&report)?);
                 } else {

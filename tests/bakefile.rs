@@ -9,6 +9,7 @@ mod common;
 use proptest::prelude::*;
 use radiosity::bakefile::container::{encode_sections, header_checksum, ENTRY_LEN, HEADER_LEN};
 use radiosity::bakefile::hash::Fnv1a64;
+use radiosity::bakefile::near_field::{NearField, NearLink};
 use radiosity::bakefile::surface::{PatchSamples, SurfaceMap};
 use radiosity::bakefile::{
     self, crc32, encode, parse, tag, BakeFile, BakeFileError, CodecBlob, Crc32, PatchRecord,
@@ -61,6 +62,7 @@ fn sample() -> BakeFile {
         info_json: r#"{"report":"test","seconds":1.5}"#.into(),
         surface_map: SurfaceMap::without_geometry(5),
         samples: PatchSamples::at_centres(&centres),
+        near_field: NearField::default(),
         patches,
     }
 }
@@ -975,4 +977,105 @@ fn scene_hash_follows_the_obj_and_mtl_contents() {
     let mut bf = sample();
     bf.scene_hash = h3;
     assert_eq!(parse(&encode(&bf).unwrap()).unwrap().scene_hash, h3);
+}
+
+/// The sample file with a near-field correction: patch 0 sees patches 1
+/// and 3, patch 4 sees patch 0, 64 rays each.
+fn with_near_field() -> BakeFile {
+    let mut counts = [0u16; 16];
+    counts[0] = 5;
+    counts[15] = 3;
+    BakeFile {
+        near_field: NearField {
+            rays: 64,
+            starts: vec![0, 2, 2, 2, 2, 3],
+            links: vec![
+                NearLink { patch: 1, counts },
+                NearLink {
+                    patch: 3,
+                    counts: [1; 16],
+                },
+                NearLink { patch: 0, counts },
+            ],
+        },
+        ..sample()
+    }
+}
+
+#[test]
+fn near_field_round_trips_and_is_optional() {
+    let bf = with_near_field();
+    let bytes = encode(&bf).unwrap();
+    assert_eq!(parse(&bytes).unwrap(), bf);
+    // Without it, the file has no NEAR section and reads back as none.
+    let plain = encode(&sample()).unwrap();
+    assert!(sections_of(&plain).iter().all(|s| &s.0 != b"NEAR"));
+    assert!(parse(&plain).unwrap().near_field.is_empty());
+    // In matrix order (the sample's permutation [2, 0, 1, 4, 3]):
+    // receiver 0 is now row 1, and its neighbours 1 and 3 are 2 and 4.
+    let order = [2u32, 0, 1, 4, 3];
+    let new_of = [1u32, 2, 0, 4, 3];
+    let r = bf.near_field.reordered(&order, &new_of);
+    let links: Vec<u32> = r.links_of(1).iter().map(|l| l.patch).collect();
+    assert_eq!(links, [2, 4]);
+    assert_eq!(
+        r.links_of(3)[0].patch,
+        1,
+        "file patch 4 is row 3, sees row 1"
+    );
+}
+
+#[test]
+fn near_field_errors_name_the_section_and_the_value() {
+    let good = encode(&with_near_field()).unwrap();
+    let at = |t: [u8; 4]| sections_of(&good).into_iter().find(|s| s.0 == t).unwrap().1;
+    let near = at(*b"NEAR");
+    // Rewrites NEAR's bytes and reseals the file.
+    let with = |f: &dyn Fn(&mut Vec<u8>)| {
+        let mut secs = sections_of(&good);
+        for s in secs.iter_mut() {
+            if &s.0 == b"NEAR" {
+                f(&mut s.1);
+            }
+        }
+        let refs: Vec<([u8; 4], &[u8])> = secs.iter().map(|(t, b)| (*t, b.as_slice())).collect();
+        encode_sections(&refs)
+    };
+    let links_at = 16 + 4 * 6;
+    type Edit = Box<dyn Fn(&mut Vec<u8>)>;
+    let cases: Vec<(Edit, &str)> = vec![
+        (
+            Box::new(move |b: &mut Vec<u8>| {
+                b[links_at..links_at + 4].copy_from_slice(&9u32.to_le_bytes())
+            }),
+            "neighbour 9 out of range",
+        ),
+        (
+            Box::new(move |b: &mut Vec<u8>| {
+                b[links_at..links_at + 4].copy_from_slice(&0u32.to_le_bytes())
+            }),
+            "neighbour 0 out of range or itself",
+        ),
+        (
+            Box::new(|b: &mut Vec<u8>| b[0..4].copy_from_slice(&8u32.to_le_bytes())),
+            "its links count 24 rays of 8",
+        ),
+        (
+            Box::new(|b: &mut Vec<u8>| b.truncate(b.len() - 1)),
+            "expected",
+        ),
+        (
+            Box::new(|b: &mut Vec<u8>| b[8..12].copy_from_slice(&4u32.to_le_bytes())),
+            "4 cells per link",
+        ),
+        (
+            Box::new(|b: &mut Vec<u8>| b[16 + 8..16 + 12].copy_from_slice(&1u32.to_le_bytes())),
+            "link starts decrease",
+        ),
+    ];
+    assert_eq!(near.len(), 16 + 4 * 6 + 3 * 36);
+    for (f, want) in cases {
+        let (_, m) = reject(&with(&*f));
+        assert!(m.contains("NEAR") && m.contains(want), "{want}: {m}");
+    }
 }

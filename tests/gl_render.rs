@@ -165,8 +165,42 @@ fn gl_direct_light_and_gather_on_patches_match_the_cpu_run_time_with_nine_lights
     }
     let e_d = rel_rms(&d_gl, rt.d());
     let e_h = rel_rms(&h_gl, rt.h());
-    // The GL gather of the GL B0 against the CPU gather of the same B0.
-    let (h_cpu_of_gl, _, _) = rt.product(&b0_gl);
+    // The near-field pass against its CPU reference on the same inputs
+    // (GL's D at the lit points): each c_i sums about 9 links × 8 points
+    // of f32 products in the same order, so they agree to a few ulps of
+    // the largest term; 1e-5 of the largest |c| is far above that and far
+    // below any wrong weight or index (each weight is ≥ 1/rays = 2.4e-4).
+    let (d_points, m) = r.d_points(gl);
+    let weights = rt.near_field_weights(m);
+    assert!(
+        !weights.is_empty(),
+        "the Cornell bake has a near-field correction"
+    );
+    let c_gl = r.near_field_c(gl).expect("the GL renderer applies it");
+    let c_cpu = weights.correction(&radiosity::runtime::direct::reflected_at_points(
+        &rt.baked, &d_points, m,
+    ));
+    let c_max = c_cpu.iter().flatten().fold(0.0f32, |a, v| a.max(v.abs()));
+    assert!(c_max > 0.0, "the correction is not zero under these lights");
+    for (a, b) in c_gl.iter().flatten().zip(c_cpu.iter().flatten()) {
+        assert!(
+            (a - b).abs() <= 1e-5 * c_max,
+            "near field: GL {a} against CPU {b}"
+        );
+    }
+    // The GL gather of the GL B0 (with the GL correction) against the CPU
+    // gather of the same.
+    let input: [Vec<f32>; 3] = std::array::from_fn(|ch| {
+        (0..rt.n())
+            .map(|j| b0_gl[ch][j] + rt.baked.patches[j].albedo[ch] * c_gl[ch][j])
+            .collect()
+    });
+    let (mut h_cpu_of_gl, _, _) = rt.product(&input);
+    for ch in 0..3 {
+        for j in 0..rt.n() {
+            h_cpu_of_gl[ch][j] += c_gl[ch][j];
+        }
+    }
     let e_gather = rel_rms(&h_gl, &h_cpu_of_gl);
     eprintln!("D rel RMS {e_d:.4}, H rel RMS {e_h:.4}, gather alone {e_gather:.2e}");
     // Shadow-edge bands (module doc). Measured 0.4 % on llvmpipe with 2048²

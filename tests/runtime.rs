@@ -149,11 +149,32 @@ fn incremental_frames_equal_a_full_product_after_100_light_moves() {
     for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
         std::fs::copy(obj.with_file_name(f), dir.join(f)).unwrap();
     }
-    let (mut rt, _) = bake(
+    let (with_near, _) = bake(
         &dir.join("cornell_box.obj"),
         Resolution::VoxelSize(60.0),
         CodecKind::default(),
     );
+    assert!(
+        !with_near.near.is_empty(),
+        "the bake has a near-field correction"
+    );
+    // The sum of terms against one full product `T̃ B0` (below) holds for
+    // the plain gather; with the near-field correction, the cached run time
+    // must equal one that recomputes every term, bit for bit.
+    let plain = |near_field: bool, cache: bool| {
+        Runtime::new(
+            with_near.baked.clone(),
+            with_near.scene.clone(),
+            RuntimeOptions {
+                near_field,
+                cache,
+                ..RuntimeOptions::default()
+            },
+        )
+    };
+    let mut rt = plain(false, true);
+    let mut cached = plain(true, true);
+    let mut fresh = plain(true, false);
     let n = rt.n();
     let mut rng = SplitMix64::new(11);
     let mut lights: Vec<Light> = (0..3)
@@ -177,6 +198,16 @@ fn incremental_frames_equal_a_full_product_after_100_light_moves() {
         if step > 0 {
             assert_eq!(s.terms_computed, 1, "only the moved light is recomputed");
         }
+        let s = cached.frame(&lights, &BTreeMap::new());
+        if step > 0 {
+            assert_eq!(s.terms_computed, 1, "with the near field too");
+        }
+        fresh.frame(&lights, &BTreeMap::new());
+        assert_eq!(
+            cached.h(),
+            fresh.h(),
+            "step {step}: cached against recomputed"
+        );
         let b0 = rt.b0().clone();
         let (full, _, _) = rt.product(&b0);
         // Each product of non-negative terms errs by at most γ_n of the

@@ -71,6 +71,9 @@ pub struct BakeConfig {
     ///
     /// [`Scene::with_back_sides`]: crate::core::scene::Scene::with_back_sides
     pub two_sided: bool,
+    /// Rays per patch of the near-field correction (0: none;
+    /// [`crate::bake::near_field`]).
+    pub near_field_rays: u32,
     /// The bake file to write, if any.
     #[serde(skip)]
     pub output: Option<PathBuf>,
@@ -94,6 +97,7 @@ impl BakeConfig {
             codec: CodecChoice::default(),
             error_lights: DEFAULT_ERROR_LIGHTS,
             two_sided: false,
+            near_field_rays: crate::bake::near_field::DEFAULT_RAYS,
             output: None,
             export: None,
         }
@@ -117,6 +121,13 @@ impl BakeConfig {
 
     /// Checks option values that do not depend on the scene.
     pub fn validate(&self) -> Result<(), BakeError> {
+        if self.near_field_rays > crate::bake::near_field::MAX_RAYS {
+            return Err(BakeError::InvalidOption {
+                option: "near-field rays per patch",
+                value: self.near_field_rays.to_string(),
+                expected: format!("0..={}", crate::bake::near_field::MAX_RAYS),
+            });
+        }
         match self.resolution {
             Resolution::VoxelSize(s) if !(s.is_finite() && s > 0.0) => {
                 return Err(BakeError::InvalidOption {

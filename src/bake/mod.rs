@@ -21,6 +21,7 @@ pub mod facing;
 pub mod form_factor;
 pub mod gemm;
 pub mod mesh_map;
+pub mod near_field;
 pub mod pieces;
 pub mod preview;
 pub mod reorder;
@@ -202,6 +203,24 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         stage: "surface map",
         seconds: t.elapsed().as_secs_f64(),
     });
+    progress(&format!(
+        "near-field correction ({} rays per patch)",
+        config.near_field_rays
+    ));
+    let sp = spinner("near field");
+    let (near_field, near_field_stats) = near_field::build(
+        &scene,
+        &vox,
+        &patch_index_of,
+        &samples,
+        n,
+        config.near_field_rays,
+    )?;
+    sp.finish_and_clear();
+    stages.push(StageTime {
+        stage: "near field",
+        seconds: near_field_stats.seconds,
+    });
 
     // Stage 8: the bake file.
     let options = OptionsRecord {
@@ -253,6 +272,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         mesh_map: map.entries.clone(),
         surface_map,
         samples,
+        near_field,
         info_json: serde_json::to_string(&info).expect("info serializes"),
     };
     if let Some(out) = &config.output {
@@ -312,6 +332,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
             codec: summary,
             mesh_map: map.stats,
             surface_map: surface_stats,
+            near_field: near_field_stats,
             output: config.output.clone(),
             stages,
         },

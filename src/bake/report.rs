@@ -119,6 +119,7 @@ pub struct BakeReport {
     pub codec: CodecSummary,
     pub mesh_map: MeshMapStats,
     pub surface_map: SurfaceMapStats,
+    pub near_field: crate::bake::near_field::NearFieldStats,
     /// The bake file written, if any.
     pub output: Option<PathBuf>,
     pub stages: Vec<StageTime>,
@@ -259,6 +260,17 @@ impl std::fmt::Display for BakeReport {
             s.neighbours_blocked,
             s.patches_centroid_samples,
             s.seconds
+        )?;
+        let nf = &self.near_field;
+        writeln!(
+            f,
+            "near field: {} rays per patch, {} links ({:.1} per patch, form factor ≥ {}), {} bytes; {:.3} s",
+            nf.rays_per_patch,
+            nf.links,
+            nf.links_per_patch,
+            crate::bakefile::near_field::MIN_FORM_FACTOR,
+            nf.bytes,
+            nf.seconds
         )?;
         writeln!(f)?;
         writeln!(f, "summary")?;

@@ -6,6 +6,7 @@
 //! naming the file and the section.
 
 use super::codec::{CodecDataError, Encoded};
+use super::near_field::NearField;
 use super::records::{BakeInfo, OptionsRecord, INFO_RECORD_VERSION, OPTIONS_RECORD_VERSION};
 use super::surface::{PatchSamples, SurfaceMap};
 use super::{read, tag, tag_name, BakeFile, BakeFileError, SceneHash};
@@ -68,6 +69,9 @@ pub struct Baked {
     pub surface_map: SurfaceMap,
     /// The patches' sample points, in matrix order.
     pub samples: PatchSamples,
+    /// The near-field correction, in matrix order (empty for a bake made
+    /// without it).
+    pub near_field: NearField,
     pub options: OptionsRecord,
     pub info: BakeInfo,
     pub scene_hash: SceneHash,
@@ -176,6 +180,7 @@ impl Baked {
             file: name.to_string(),
             surface_map: bf.surface_map.renumbered(&order, &new_of),
             samples: bf.samples.reordered(&order),
+            near_field: bf.near_field.reordered(&order, &new_of),
             patches,
             matrix,
             order,

@@ -51,6 +51,7 @@
 //! | `MMAP` | the mesh-to-patch map, per vertex 4 × (`u32` patch, `f32` weight)         |
 //! | `SMAP` | the per-pixel surface map ([`surface`] gives the layout)                  |
 //! | `PSMP` | the patches' sample points ([`surface`])                                  |
+//! | `NEAR` | optional: the near-field correction ([`near_field`] gives the layout)     |
 //! | `INFO` | the bake report record [`records::BakeInfo`], JSON text                   |
 //!
 //! Sections are found through the table, never by position; the writer
@@ -90,6 +91,7 @@ pub mod baked;
 pub mod codec;
 pub mod container;
 pub mod hash;
+pub mod near_field;
 pub mod records;
 pub mod surface;
 
@@ -100,6 +102,7 @@ pub use container::{
 pub use hash::SceneHash;
 
 use container::{encode_sections, le_u32, write_atomic};
+use near_field::NearField;
 use serde::Serialize;
 use std::path::Path;
 use surface::{PatchSamples, SurfaceMap};
@@ -153,6 +156,9 @@ pub mod tag {
     pub const SURFACE_MAP: [u8; 4] = *b"SMAP";
     /// The patches' sample points.
     pub const SAMPLES: [u8; 4] = *b"PSMP";
+    /// The near-field correction (optional: a file without it loads with
+    /// none).
+    pub const NEAR_FIELD: [u8; 4] = *b"NEAR";
     /// Bake report, JSON.
     pub const INFO: [u8; 4] = *b"INFO";
 
@@ -191,6 +197,7 @@ pub fn section_what(t: [u8; 4]) -> &'static str {
         tag::MESH_MAP => "mesh-to-patch map",
         tag::SURFACE_MAP => "surface map",
         tag::SAMPLES => "patch sample points",
+        tag::NEAR_FIELD => "near-field correction",
         tag::INFO => "bake report",
         _ => "unknown section",
     }
@@ -290,6 +297,9 @@ pub struct BakeFile {
     pub surface_map: SurfaceMap,
     /// The patches' sample points ([`surface`]), in file order.
     pub samples: PatchSamples,
+    /// The near-field correction ([`near_field`]), in file order; written
+    /// only when not empty.
+    pub near_field: NearField,
     /// Free-form bake report, JSON text.
     pub info_json: String,
 }
@@ -428,6 +438,9 @@ pub fn validate(bf: &BakeFile, file: &str) -> Result<(), BakeFileError> {
     bf.samples
         .check(n, NORMAL_LENGTH_TOLERANCE)
         .map_err(|d| invalid(file, tag::SAMPLES, d))?;
+    bf.near_field
+        .check(n)
+        .map_err(|d| invalid(file, tag::NEAR_FIELD, d))?;
     for (v, row) in bf.mesh_map.iter().enumerate() {
         let mut sum = 0.0f64;
         for (s, &(p, w)) in row.iter().enumerate() {
@@ -509,7 +522,8 @@ fn encode_named(bf: &BakeFile, file: &str) -> Result<Vec<u8>, BakeFileError> {
     let hash = bf.scene_hash.to_bytes();
     let smap = bf.surface_map.to_bytes();
     let psmp = bf.samples.to_bytes();
-    let sections: [([u8; 4], &[u8]); 14] = [
+    let near = bf.near_field.to_bytes();
+    let mut sections: Vec<([u8; 4], &[u8])> = vec![
         (tag::OPTIONS, bf.options_json.as_bytes()),
         (tag::SCENE_HASH, &hash),
         (tag::PATCHES, &patches),
@@ -523,9 +537,16 @@ fn encode_named(bf: &BakeFile, file: &str) -> Result<Vec<u8>, BakeFileError> {
         (tag::MESH_MAP, &map),
         (tag::SURFACE_MAP, &smap),
         (tag::SAMPLES, &psmp),
-        (tag::INFO, bf.info_json.as_bytes()),
     ];
-    debug_assert!(sections.iter().map(|s| s.0).eq(tag::REQUIRED));
+    if !bf.near_field.is_empty() {
+        sections.push((tag::NEAR_FIELD, &near));
+    }
+    sections.push((tag::INFO, bf.info_json.as_bytes()));
+    debug_assert!(sections
+        .iter()
+        .map(|s| s.0)
+        .filter(|t| *t != tag::NEAR_FIELD)
+        .eq(tag::REQUIRED));
     Ok(encode_sections(&sections))
 }
 
@@ -670,6 +691,12 @@ pub fn parse_named(bytes: &[u8], file: &str) -> Result<BakeFile, BakeFileError> 
             .map_err(|d| invalid(file, tag::SURFACE_MAP, d))?,
         samples: PatchSamples::from_bytes(get(tag::SAMPLES)?, n, NORMAL_LENGTH_TOLERANCE)
             .map_err(|d| invalid(file, tag::SAMPLES, d))?,
+        near_field: match secs.iter().find(|s| s.tag == tag::NEAR_FIELD) {
+            Some(s) => {
+                NearField::from_bytes(s.bytes, n).map_err(|d| invalid(file, tag::NEAR_FIELD, d))?
+            }
+            None => NearField::none(),
+        },
         mesh_map,
         info_json,
     };

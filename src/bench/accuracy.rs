@@ -24,7 +24,7 @@ use crate::core::compute::{Backend, DeviceSelection, Gpu};
 use crate::core::scene;
 use crate::core::scene_config::SceneConfig;
 use crate::reference::PathTracer;
-use crate::runtime::{Runtime, RuntimeOptions};
+use crate::runtime::{direct, Runtime, RuntimeOptions};
 use anyhow::Context as _;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -76,13 +76,18 @@ pub fn compare(areas: &[f64], h: &[[f64; 3]], r: &[[f64; 3]], se: &[[f64; 3]]) -
 
 /// Runs the comparison for the bake at `path` lit by `config`, `paths`
 /// paths from each of `points` sample points per patch; `first` also
-/// measures the first reflection through a recomputed `F` on `selection`.
+/// measures the first reflection through a recomputed `F` on `selection`;
+/// `per_patch` writes one CSV row per patch (see [`write_per_patch`]);
+/// `near_field` applies the bake's near-field correction (off: to measure
+/// what it does).
 pub fn run(
     path: &Path,
     config: &SceneConfig,
     paths: usize,
     points: usize,
     first: Option<DeviceSelection>,
+    per_patch: Option<&Path>,
+    near_field: bool,
 ) -> anyhow::Result<(AccuracyReport, String)> {
     let baked = Baked::load(path)?;
     let scene_path = resolve_scene_path(path, &baked.info.scene);
@@ -95,6 +100,7 @@ pub fn run(
         scene,
         RuntimeOptions {
             samples: points,
+            near_field,
             ..RuntimeOptions::default()
         },
     );
@@ -121,25 +127,8 @@ pub fn run(
         .collect();
     let r: Vec<[f64; 3]> = reference.iter().map(|e| e.mean).collect();
     let se: Vec<[f64; 3]> = reference.iter().map(|e| e.std_error).collect();
-    if std::env::var("RADIOSITY_DEBUG_ACCURACY").is_ok() {
-        let mut idx: Vec<usize> = (0..n).collect();
-        idx.sort_by(|&a, &b| {
-            let e = |j: usize| areas[j] * (h[j][0] - r[j][0]).powi(2);
-            e(b).total_cmp(&e(a))
-        });
-        for &j in idx.iter().take(12) {
-            let p = &rt.baked.patches[j];
-            eprintln!(
-                "patch {j}: centre {:?} normal {:?} area {:.3} H {:.3} ref {:.3} B0 {:.3} D {:.3}",
-                p.centre,
-                p.normal,
-                p.area,
-                h[j][0],
-                r[j][0],
-                rt.b0()[0][j],
-                rt.d()[0][j]
-            );
-        }
+    if let Some(out) = per_patch {
+        write_per_patch(out, &rt, &h, &r, &se)?;
     }
     let mut report = AccuracyReport {
         patches: n,
@@ -184,6 +173,16 @@ pub fn run(
         if ff.n == n {
             let order = &rt.baked.order;
             let b0 = rt.b0();
+            // The run time's first reflection: F B0 plus the near-field
+            // correction of the same lights (zero without one).
+            let near = if rt.near.is_empty() {
+                [vec![0.0; n], vec![0.0; n], vec![0.0; n]]
+            } else {
+                let m = rt.near.m;
+                let (d_points, _) = direct::irradiance(&rt.baked, &rt.direct, &config.lights, m);
+                rt.near
+                    .correction(&direct::reflected_at_points(&rt.baked, &d_points, m))
+            };
             let f1: Vec<[f64; 3]> = (0..n)
                 .into_par_iter()
                 .map(|i| {
@@ -191,7 +190,8 @@ pub fn run(
                     std::array::from_fn(|c| {
                         (0..n)
                             .map(|j| row[order[j] as usize] as f64 * b0[c][j] as f64)
-                            .sum()
+                            .sum::<f64>()
+                            + near[c][i] as f64
                     })
                 })
                 .collect();
@@ -246,7 +246,7 @@ pub fn run(
     };
     line(&mut s, "H = T̃ B0", &report.total);
     if let Some(c) = &report.first_reflection {
-        line(&mut s, "first reflection F B0", c);
+        line(&mut s, "first reflection F B0 + near field", c);
     }
     if let Some(c) = &report.later_bounces {
         line(&mut s, "later bounces", c);
@@ -265,4 +265,33 @@ pub fn run(
         )?;
     }
     Ok((report, s))
+}
+
+/// Writes one CSV row per patch: index, centre, normal, area, then the
+/// bake's `H`, the reference's `H_ref` and its standard error, `B0` and
+/// `D`, each as three channels — for finding where the error sits (by
+/// size, orientation, place) with any plotting tool.
+fn write_per_patch(
+    out: &Path,
+    rt: &Runtime,
+    h: &[[f64; 3]],
+    r: &[[f64; 3]],
+    se: &[[f64; 3]],
+) -> anyhow::Result<()> {
+    let mut csv = String::from(
+        "patch,x,y,z,nx,ny,nz,area,h_r,h_g,h_b,ref_r,ref_g,ref_b,se_r,se_g,se_b,b0_r,b0_g,b0_b,d_r,d_g,d_b\n",
+    );
+    for (j, p) in rt.baked.patches.iter().enumerate() {
+        let [x, y, z] = p.centre;
+        let [nx, ny, nz] = p.normal;
+        let _ = write!(csv, "{j},{x},{y},{z},{nx},{ny},{nz},{}", p.area);
+        for v in [h[j], r[j], se[j]] {
+            let _ = write!(csv, ",{},{},{}", v[0], v[1], v[2]);
+        }
+        for v in [rt.b0(), rt.d()] {
+            let _ = write!(csv, ",{},{},{}", v[0][j], v[1][j], v[2][j]);
+        }
+        csv.push('\n');
+    }
+    std::fs::write(out, csv).with_context(|| format!("writing {}", out.display()))
 }

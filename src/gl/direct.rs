@@ -21,9 +21,9 @@ pub const VIEW_BINDING: usize = 15;
 /// The direct pass and its buffers.
 pub struct GlDirect {
     program: glow::Program,
-    /// Sample positions, normals, albedo, emission, `D`, `B0`, tile flags
-    /// (bindings 0..=6).
-    pub buffers: [glow::Buffer; 7],
+    /// Sample positions, normals, albedo, emission, `D`, `B0`, tile flags,
+    /// `D` at each lit point (bindings 0..=7).
+    pub buffers: [glow::Buffer; 8],
     n: usize,
     tiles: usize,
 }
@@ -65,6 +65,11 @@ impl GlDirect {
             storage_buffer(gl, &zeros, glow::DYNAMIC_COPY)?,
             storage_buffer(gl, &zeros, glow::DYNAMIC_COPY)?,
             storage_buffer(gl, &vec![0u8; 4 * tiles], glow::DYNAMIC_COPY)?,
+            storage_buffer(
+                gl,
+                &vec![0u8; 12 * n * SAMPLES_PER_PATCH],
+                glow::DYNAMIC_COPY,
+            )?,
         ];
         super::check(gl, "uploading the sample points")?;
         Ok(GlDirect {
@@ -128,6 +133,11 @@ impl GlDirect {
     }
     pub fn active_buffer(&self) -> glow::Buffer {
         self.buffers[6]
+    }
+    /// `D` at each lit point (3 × n × samples, channel-major, patch-major
+    /// within a channel).
+    pub fn d_points_buffer(&self) -> glow::Buffer {
+        self.buffers[7]
     }
     /// The per-patch albedo buffer (3 n, channel-major).
     pub fn albedo_buffer(&self) -> glow::Buffer {

@@ -9,6 +9,7 @@ pub mod context;
 pub mod direct;
 pub mod gather;
 pub mod light;
+pub mod near_field;
 pub mod renderer;
 pub mod scene;
 pub mod shade;

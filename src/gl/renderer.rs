@@ -16,6 +16,7 @@
 use super::direct::{GlDirect, LIGHT_BINDING, VIEW_BINDING};
 use super::gather::GlGather;
 use super::light::{Packed, NORMAL_OFFSET};
+use super::near_field::{GlNearField, NearFieldInputs};
 use super::scene::GlScene;
 use super::shade::{MaterialConstants, Shade};
 use super::shadow::ShadowMaps;
@@ -34,7 +35,9 @@ use std::f32::consts::PI;
 pub struct GlOptions {
     /// Shadow map side in texels.
     pub shadow_resolution: usize,
-    /// Sample points per patch for direct light (1..=16).
+    /// Sample points per patch for direct light (1..=16). With a bake's
+    /// near-field correction, its weights are made for the count given
+    /// when the renderer is made, and that count stays in use.
     pub samples: usize,
     /// Skip zero tile columns of `B0` in the gather (off only to measure
     /// what it saves: the result is the same).
@@ -191,6 +194,7 @@ pub struct GlRenderer {
     shadows: ShadowMaps,
     direct: GlDirect,
     pub gather: GlGather,
+    near: Option<GlNearField>,
     shade: Shade,
     lights_buffer: glow::Buffer,
     views_buffer: glow::Buffer,
@@ -219,6 +223,7 @@ impl GlRenderer {
         let shadows = ShadowMaps::new(gl, options.shadow_resolution)?;
         let direct = GlDirect::new(gl, baked)?;
         let gather = GlGather::new(gl, &baked.matrix)?;
+        let near = GlNearField::new(gl, &rt.near_field_weights(options.samples))?;
         let shade = Shade::new(
             gl,
             &[
@@ -233,6 +238,7 @@ impl GlRenderer {
             shadows,
             direct,
             gather,
+            near,
             shade,
             lights_buffer: storage_buffer(gl, &[], glow::DYNAMIC_DRAW)?,
             views_buffer: storage_buffer(gl, &[], glow::DYNAMIC_DRAW)?,
@@ -311,10 +317,23 @@ impl GlRenderer {
         self.shadows.render(gl, &self.scene, &self.packed.views)?;
         self.timers.end(gl);
         self.timers.begin(gl, Pass::Direct);
-        let samples = self.options.samples;
+        let samples = self
+            .near
+            .as_ref()
+            .map_or(self.options.samples, |nf| nf.samples());
         let binding = self.light_binding();
         self.direct.dispatch(gl, samples, |p| binding.bind(gl, p));
         self.timers.end(gl);
+        let io = NearFieldInputs {
+            d_points: self.direct.d_points_buffer(),
+            albedo: self.direct.albedo_buffer(),
+            b0: self.direct.b0_buffer(),
+            active: self.direct.active_buffer(),
+            h: self.gather.h_buffer(),
+        };
+        if let Some(nf) = &self.near {
+            nf.dispatch(gl, 0, &io);
+        }
         if !self.options.skip_columns {
             self.direct.activate_all(gl);
         }
@@ -322,8 +341,14 @@ impl GlRenderer {
         // gather's reads.
         unsafe { gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT) };
         self.timers.begin(gl, Pass::Gather);
-        self.gather
-            .dispatch(gl, self.direct.b0_buffer(), self.direct.active_buffer());
+        let input = self
+            .near
+            .as_ref()
+            .map_or(self.direct.b0_buffer(), |nf| nf.gather_input());
+        self.gather.dispatch(gl, input, self.direct.active_buffer());
+        if let Some(nf) = &self.near {
+            nf.dispatch(gl, 1, &io);
+        }
         self.timers.end(gl);
         // SAFETY: the gather's writes are read by the shading pass.
         unsafe { gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT) };
@@ -412,6 +437,23 @@ impl GlRenderer {
     pub fn d(&self, gl: &glow::Context) -> [Vec<f32>; 3] {
         split(read_floats(gl, self.direct.d_buffer(), 3 * self.n), self.n)
     }
+    /// The near-field correction `c` of the last frame, when the bake has
+    /// one (read back).
+    pub fn near_field_c(&self, gl: &glow::Context) -> Option<[Vec<f32>; 3]> {
+        let nf = self.near.as_ref()?;
+        Some(split(read_floats(gl, nf.c_buffer(), 3 * self.n), self.n))
+    }
+    /// `D` at each lit point of the last frame (three channels of `n ×`
+    /// points, patch-major; read back).
+    pub fn d_points(&self, gl: &glow::Context) -> ([Vec<f32>; 3], usize) {
+        let m = self
+            .near
+            .as_ref()
+            .map_or(self.options.samples, |nf| nf.samples())
+            .clamp(1, crate::bakefile::surface::SAMPLES_PER_PATCH);
+        let all = read_floats(gl, self.direct.d_points_buffer(), 3 * self.n * m);
+        (split(all, self.n * m), m)
+    }
     pub fn b0(&self, gl: &glow::Context) -> [Vec<f32>; 3] {
         split(read_floats(gl, self.direct.b0_buffer(), 3 * self.n), self.n)
     }
@@ -426,6 +468,9 @@ impl GlRenderer {
         self.shadows.delete(gl);
         self.direct.delete(gl);
         self.gather.delete(gl);
+        if let Some(nf) = self.near {
+            nf.delete(gl);
+        }
         self.shade.delete(gl);
         // SAFETY: objects of this context, not used after.
         unsafe {

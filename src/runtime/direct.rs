@@ -25,24 +25,60 @@ pub fn patch_irradiance(
     lights: &[Light],
     samples: usize,
 ) -> [Vec<f32>; 3] {
+    irradiance(baked, dl, lights, samples).1
+}
+
+/// The direct irradiance at each of the first `samples` points of every
+/// patch (three channels, `n × samples` each, patch-major), and `D`, their
+/// mean per patch (summed in f64).
+pub fn irradiance(
+    baked: &Baked,
+    dl: &DirectLight,
+    lights: &[Light],
+    samples: usize,
+) -> ([Vec<f32>; 3], [Vec<f32>; 3]) {
     let s = samples.clamp(1, SAMPLES_PER_PATCH);
     let n = baked.patches.len();
-    let d: Vec<[f64; 3]> = (0..n)
+    let per: Vec<(Vec<[f64; 3]>, [f64; 3])> = (0..n)
         .into_par_iter()
         .map(|j| {
-            let points: Vec<([f64; 3], [f64; 3])> = (0..s)
+            let points: Vec<[f64; 3]> = (0..s)
                 .map(|k| {
                     let i = j * SAMPLES_PER_PATCH + k;
-                    (
+                    let p = (
                         baked.samples.position[i].map(f64::from),
                         baked.samples.normal[i].map(f64::from),
-                    )
+                    );
+                    dl.at_points(std::slice::from_ref(&p), lights)
                 })
                 .collect();
-            dl.at_points(&points, lights)
+            let mut mean = [0.0f64; 3];
+            for p in &points {
+                for c in 0..3 {
+                    mean[c] += p[c];
+                }
+            }
+            (points, mean.map(|v| v / s as f64))
         })
         .collect();
-    std::array::from_fn(|c| d.iter().map(|v| v[c] as f32).collect())
+    let at_points = std::array::from_fn(|c| {
+        per.iter()
+            .flat_map(|(p, _)| p.iter().map(move |v| v[c] as f32))
+            .collect()
+    });
+    let d = std::array::from_fn(|c| per.iter().map(|(_, m)| m[c] as f32).collect());
+    (at_points, d)
+}
+
+/// `ρ_j D_jk` at each of `samples` points per patch (patch-major), from
+/// [`irradiance`]'s per-point values.
+pub fn reflected_at_points(baked: &Baked, d: &[Vec<f32>; 3], samples: usize) -> [Vec<f32>; 3] {
+    std::array::from_fn(|c| {
+        d[c].iter()
+            .enumerate()
+            .map(|(k, &dv)| baked.patches[k / samples].albedo[c] * dv)
+            .collect()
+    })
 }
 
 /// `B0 = ρ ∘ D` per channel (emission is added separately).

@@ -8,7 +8,9 @@
 //!    shadows ([`direct`]);
 //! 2. `B0 = ρ ∘ D + E`, `E` with each emissive material's run-time scale
 //!    ([`emission`]);
-//! 3. `H = T̃ · B0` straight from the compressed matrix ([`gather`]).
+//! 3. `H = T̃ · B0` straight from the compressed matrix ([`gather`]); with
+//!    the bake's near-field correction `c` from the exitance at the lit
+//!    sample points, `H = T̃ · (B0 + ρ ∘ c) + c` ([`near_field`]).
 //!
 //! **What a frame skips.** The products are kept per light and for the
 //! emission: `H = T̃ E + Σ_l T̃ (ρ ∘ D_l)`, each term the gather of its own
@@ -27,6 +29,7 @@
 pub mod direct;
 pub mod emission;
 pub mod gather;
+pub mod near_field;
 pub mod render;
 pub mod surface;
 pub mod texture;
@@ -38,6 +41,7 @@ use crate::core::scene::Scene;
 use crate::core::scene_config::Light;
 use emission::Emission;
 use gather::{ActiveColumns, CompressedGather, GatherStats};
+use near_field::NearFieldWeights;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -54,6 +58,9 @@ pub struct RuntimeOptions {
     pub cache: bool,
     /// Use the AVX-512 gather where the CPU has it.
     pub simd: bool,
+    /// Apply the bake's near-field correction ([`near_field`]; off only
+    /// to measure what it does).
+    pub near_field: bool,
 }
 
 impl Default for RuntimeOptions {
@@ -63,6 +70,7 @@ impl Default for RuntimeOptions {
             skip_columns: true,
             cache: true,
             simd: true,
+            near_field: true,
         }
     }
 }
@@ -103,6 +111,9 @@ pub struct Runtime {
     pub direct: DirectLight,
     pub gather: CompressedGather,
     pub emission: Emission,
+    /// The near-field correction's weights (empty when the bake has none
+    /// or the option is off).
+    pub near: NearFieldWeights,
     pub options: RuntimeOptions,
     terms: Vec<Term>,
     emission_term: Option<(BTreeMap<String, f32>, Term)>,
@@ -125,7 +136,13 @@ impl Runtime {
         };
         let gather = CompressedGather::new(&baked.matrix, options.simd);
         let emission = Emission::new(&baked, &scene);
+        let near = if options.near_field {
+            NearFieldWeights::new(&baked.near_field, &baked.samples, n, options.samples)
+        } else {
+            NearFieldWeights::new(&Default::default(), &baked.samples, n, options.samples)
+        };
         Runtime {
+            near,
             direct: DirectLight::new(&scene),
             gather,
             emission,
@@ -173,6 +190,49 @@ impl Runtime {
         let mut h = std::array::from_fn(|_| vec![0.0; self.n()]);
         let stats = self.gather.gather(refs, &active, &mut h);
         (h, stats, active.active_groups)
+    }
+
+    /// The near-field weights for `m` lit points per patch, as this run
+    /// time's options ask (none when the option is off), for another
+    /// renderer of the same frame (the GL one).
+    pub fn near_field_weights(&self, m: usize) -> NearFieldWeights {
+        let none = Default::default();
+        let nf = if self.options.near_field {
+            &self.baked.near_field
+        } else {
+            &none
+        };
+        NearFieldWeights::new(nf, &self.baked.samples, self.n(), m)
+    }
+
+    /// `H` of one light's term: `T̃ · b0`, or with the near-field
+    /// correction `c` from the exitance at the lit points (`d_points`,
+    /// [`direct::irradiance`]), `T̃ · (b0 + ρ ∘ c) + c`.
+    pub fn light_product(
+        &self,
+        b0: &[Vec<f32>; 3],
+        d_points: &[Vec<f32>; 3],
+    ) -> ([Vec<f32>; 3], GatherStats, usize) {
+        if self.near.is_empty() {
+            return self.product(b0);
+        }
+        let at_points = direct::reflected_at_points(&self.baked, d_points, self.near.m);
+        let c = self.near.correction(&at_points);
+        let b: [Vec<f32>; 3] = std::array::from_fn(|ch| {
+            b0[ch]
+                .iter()
+                .zip(&c[ch])
+                .zip(&self.baked.patches)
+                .map(|((&b, &cv), p)| b + p.albedo[ch] * cv)
+                .collect()
+        });
+        let (mut h, g, active) = self.product(&b);
+        for ch in 0..3 {
+            for (hv, cv) in h[ch].iter_mut().zip(&c[ch]) {
+                *hv += cv;
+            }
+        }
+        (h, g, active)
     }
 
     /// Lights the scene with `lights` and the emission `scales` (material
@@ -227,7 +287,7 @@ impl Runtime {
             }
             changed = true;
             let t0 = Instant::now();
-            let d = direct::patch_irradiance(
+            let (d_points, d) = direct::irradiance(
                 &self.baked,
                 &self.direct,
                 std::slice::from_ref(light),
@@ -236,7 +296,7 @@ impl Runtime {
             stats.seconds_direct += t0.elapsed().as_secs_f64();
             let b0 = direct::reflected(&self.baked, &d);
             let t0 = Instant::now();
-            let (h, g, active) = self.product(&b0);
+            let (h, g, active) = self.light_product(&b0, &d_points);
             stats.seconds_gather += t0.elapsed().as_secs_f64();
             add_gather(&mut stats, &g, active, groups);
             stats.terms_computed += 1;

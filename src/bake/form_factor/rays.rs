@@ -55,7 +55,7 @@ use std::time::Instant;
 /// `g` the real root of `x⁵ = x + 1`. Ray `k` takes its point in the fan
 /// triangle from the first two coordinates and its direction from the
 /// last two.
-const R4: [f64; 4] = [
+pub(crate) const R4: [f64; 4] = [
     0.856_674_883_854_502_9,
     0.733_891_856_627_126,
     0.628_706_721_037_808_6,
@@ -325,7 +325,7 @@ fn emit(
 
 /// The unit normal of a BVH triangle (its winding), from its stored f32
 /// vertices.
-fn geo_normal(bvh: &Bvh, leaf: u32) -> [f64; 3] {
+pub(crate) fn geo_normal(bvh: &Bvh, leaf: u32) -> [f64; 3] {
     let t = &bvh.tris[leaf as usize];
     let p = |v: [f32; 3]| v.map(f64::from);
     let nn = crate::core::math::cross(sub(p(t.v1), p(t.v0)), sub(p(t.v2), p(t.v0)));
@@ -334,7 +334,7 @@ fn geo_normal(bvh: &Bvh, leaf: u32) -> [f64; 3] {
 
 /// The cosine-distributed unit direction around `n` (Malley's method) of
 /// the point `(u1, u2)` of the unit square.
-fn cosine_direction(n: [f64; 3], u1: f64, u2: f64) -> [f64; 3] {
+pub(crate) fn cosine_direction(n: [f64; 3], u1: f64, u2: f64) -> [f64; 3] {
     let r = u1.sqrt();
     let phi = 2.0 * std::f64::consts::PI * u2;
     let (t, b) = tangent_basis(n);
