@@ -212,9 +212,10 @@ pub(crate) fn draw_headless(
             let fs = rt.frame(&config.lights, &config.emission);
             let (img, rs) = render(rt, config, view, width, height, &albedo);
             let s = format!(
-                "cpu: {} patches, direct {:.3} s, gather {:.3} s ({} bytes read, {:.1} % of column groups active); image {}×{} in {:.3} s ({} back-facing pixels, {} through a nearest piece, {} unmapped)",
+                "cpu: {} patches, direct {:.3} s, near field {:.3} s, gather {:.3} s ({} bytes read, {:.1} % of column groups active); image {}×{} in {:.3} s ({} back-facing pixels, {} through a nearest piece, {} unmapped)",
                 rt.n(),
                 fs.seconds_direct,
+                fs.seconds_near_field,
                 fs.seconds_gather,
                 fs.gather.bytes_read,
                 100.0 * fs.active_groups as f64 / fs.total_groups.max(1) as f64,

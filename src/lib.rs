@@ -67,14 +67,18 @@
 //!    fraction, all-zero tiles skipped (or BC4, BC6H, f16, f32), with its
 //!    error measured over seeded lights ([`core::direct`]).
 //! 7. [`bake::mesh_map`]: per mesh vertex, up to four patches and weights,
-//!    never through a wall.
+//!    never through a wall; [`bake::surface_map`]: the per-pixel map and the
+//!    patches' sample points; [`bake::near_field`]: per patch, its close
+//!    neighbours' cells as its rays see them ([`bakefile::near_field`]).
 //! 8. [`bakefile`]: the versioned, checksummed `.rad` file holding all of it
 //!    with its typed records ([`bakefile::records`]).
 //!
 //! Run time (the CPU frame in `runtime`, its GPU twin in `gl`): direct
-//! irradiance `D` on patches → `H = T̃ · B0` with `B0 = ρ ∘ D + E` straight
-//! from the compressed matrix → `H` at every pixel through the surface map
-//! → shading `L = ρ/π · (D + H) + Le`.
+//! irradiance `D` on patches (at their sample points) → the near-field
+//! correction `c` from `D` at close neighbours' points → `H = T̃ · (B0 + ρ
+//! ∘ c) + c` with `B0 = ρ ∘ D + E` straight from the compressed matrix →
+//! `H` at every pixel through the surface map → shading `L = ρ/π · (D + H)
+//! + Le`.
 //!
 //! ## Invariants
 //! - Every OpenCL kernel (`kernels/*.cl`, embedded with `include_str!`) has a

@@ -231,6 +231,9 @@ pub(crate) struct FrameTimes {
     /// Seconds of the whole frame.
     pub frame: f64,
     pub b0: [Vec<f32>; 3],
+    /// `T̃ · B0` of the frame's `B0`: the compressed gather alone, without
+    /// the near-field correction the frame's `H` adds, so that it can be
+    /// compared with the exact `T B0` of the same `F` (the codec's error).
     pub h: [Vec<f32>; 3],
     pub all: ActiveColumns,
     pub lit: ActiveColumns,
@@ -246,7 +249,7 @@ pub(crate) struct FrameTimes {
 pub(crate) fn time_frame(rt: &mut Runtime, config: &SceneConfig, repeat: usize) -> FrameTimes {
     let (stats, frame) = best(repeat, || rt.frame(&config.lights, &config.emission));
     let b0 = rt.b0().clone();
-    let h = rt.h().clone();
+    let (h, _, _) = rt.product(&b0);
     let refs = [&b0[0][..], &b0[1][..], &b0[2][..]];
     let tile = rt.baked.matrix.index.tile;
     let all = ActiveColumns::of(refs, tile, true);
@@ -337,11 +340,13 @@ pub fn run(
     writeln!(out, "|---|---|---|")?;
     writeln!(
         out,
-        "| frame, nothing reused | {:.2} ms | direct {:.2} ms ({} lights, {} samples per patch), gathers {:.2} ms |",
+        "| frame, nothing reused | {:.2} ms | direct {:.2} ms ({} lights, {} samples per patch), near-field correction {:.3} ms ({} links), gathers {:.2} ms |",
         1e3 * t_frame,
         1e3 * fs.seconds_direct,
         config.lights.len(),
         rt.options.samples,
+        1e3 * fs.seconds_near_field,
+        rt.near.links(),
         1e3 * fs.seconds_gather
     )?;
     let gb = |s: &crate::runtime::gather::GatherStats, t: f64| s.bytes_read as f64 / t;

@@ -170,7 +170,10 @@ fn run_case(
     let mut rt = Runtime::new(baked, scene::load(&obj)?, RuntimeOptions::default());
     let config = &c.scene.config;
     rt.frame(&config.lights, &config.emission);
-    let (b0, h) = (rt.b0().clone(), rt.h().clone());
+    // The compressed gather alone (without the near-field correction),
+    // against the exact T B0 of the same F.
+    let b0 = rt.b0().clone();
+    let (h, _, _) = rt.product(&b0);
     let exact = exact_infinite(&f, n, &albedo, &b0);
     let non_finite = h
         .iter()

@@ -78,9 +78,12 @@ impl Default for RuntimeOptions {
 /// Times and counts of one frame.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FrameStats {
-    /// Seconds of direct light, gathers, and the sum of terms.
+    /// Seconds of direct light, gathers (with the near-field correction's
+    /// additions), and the whole frame.
     pub seconds_direct: f64,
     pub seconds_gather: f64,
+    /// Seconds of the near-field correction (before the gathers).
+    pub seconds_near_field: f64,
     pub seconds_total: f64,
     /// Terms (lights, emission) recomputed, and reused.
     pub terms_computed: usize,
@@ -213,11 +216,28 @@ impl Runtime {
         b0: &[Vec<f32>; 3],
         d_points: &[Vec<f32>; 3],
     ) -> ([Vec<f32>; 3], GatherStats, usize) {
+        self.corrected_product(b0, self.near_correction(d_points).as_ref())
+    }
+
+    /// The near-field correction `c` of a term whose direct light at the
+    /// lit points is `d_points` (`None` when the bake has none).
+    pub fn near_correction(&self, d_points: &[Vec<f32>; 3]) -> Option<[Vec<f32>; 3]> {
         if self.near.is_empty() {
-            return self.product(b0);
+            return None;
         }
         let at_points = direct::reflected_at_points(&self.baked, d_points, self.near.m);
-        let c = self.near.correction(&at_points);
+        Some(self.near.correction(&at_points))
+    }
+
+    /// `T̃ · b0`, or with a correction `c`, `T̃ · (b0 + ρ ∘ c) + c`.
+    pub fn corrected_product(
+        &self,
+        b0: &[Vec<f32>; 3],
+        c: Option<&[Vec<f32>; 3]>,
+    ) -> ([Vec<f32>; 3], GatherStats, usize) {
+        let Some(c) = c else {
+            return self.product(b0);
+        };
         let b: [Vec<f32>; 3] = std::array::from_fn(|ch| {
             b0[ch]
                 .iter()
@@ -296,7 +316,10 @@ impl Runtime {
             stats.seconds_direct += t0.elapsed().as_secs_f64();
             let b0 = direct::reflected(&self.baked, &d);
             let t0 = Instant::now();
-            let (h, g, active) = self.light_product(&b0, &d_points);
+            let c = self.near_correction(&d_points);
+            stats.seconds_near_field += t0.elapsed().as_secs_f64();
+            let t0 = Instant::now();
+            let (h, g, active) = self.corrected_product(&b0, c.as_ref());
             stats.seconds_gather += t0.elapsed().as_secs_f64();
             add_gather(&mut stats, &g, active, groups);
             stats.terms_computed += 1;
