@@ -115,6 +115,7 @@ fn bake_reports_counts_and_exports_patches() {
             "encode",
             "mesh map",
             "surface map",
+            "near field",
             "export"
         ]
     );
@@ -315,6 +316,13 @@ fn bad_options_and_devices_are_refused() {
     assert!(stderr(&o).contains("--voxel-size"), "{}", stderr(&o));
     let o = radiosity(&["bake", p, "--patches", "0"]);
     assert_eq!(o.status.code(), Some(1));
+    let o = radiosity(&["bake", p, "--near-field-rays", "70000"]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("--near-field-rays") && e.contains("70000") && e.contains("65520"),
+        "{e}"
+    );
     let o = radiosity(&["bake", p, "--device", "99"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("index 99"), "{}", stderr(&o));

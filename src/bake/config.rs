@@ -107,7 +107,7 @@ impl BakeConfig {
     /// key; not the device, the output or the exports).
     pub fn cache_key(&self) -> String {
         format!(
-            "v{} {:?} {:?} {:?} {:?} {:?} {}{}",
+            "v{} {:?} {:?} {:?} {:?} {:?} {} near{}{}",
             crate::bakefile::FORMAT_VERSION,
             self.resolution,
             self.form_factor,
@@ -115,6 +115,7 @@ impl BakeConfig {
             self.reorder,
             self.codec,
             self.error_lights,
+            self.near_field_rays,
             if self.two_sided { " two-sided" } else { "" }
         )
     }

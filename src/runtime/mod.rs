@@ -139,11 +139,7 @@ impl Runtime {
         };
         let gather = CompressedGather::new(&baked.matrix, options.simd);
         let emission = Emission::new(&baked, &scene);
-        let near = if options.near_field {
-            NearFieldWeights::new(&baked.near_field, &baked.samples, n, options.samples)
-        } else {
-            NearFieldWeights::new(&Default::default(), &baked.samples, n, options.samples)
-        };
+        let near = near_weights(&baked, options.near_field, options.samples);
         Runtime {
             near,
             direct: DirectLight::new(&scene),
@@ -199,13 +195,7 @@ impl Runtime {
     /// time's options ask (none when the option is off), for another
     /// renderer of the same frame (the GL one).
     pub fn near_field_weights(&self, m: usize) -> NearFieldWeights {
-        let none = Default::default();
-        let nf = if self.options.near_field {
-            &self.baked.near_field
-        } else {
-            &none
-        };
-        NearFieldWeights::new(nf, &self.baked.samples, self.n(), m)
+        near_weights(&self.baked, self.options.near_field, m)
     }
 
     /// `H` of one light's term: `T̃ · b0`, or with the near-field
@@ -359,6 +349,14 @@ impl Runtime {
         stats.seconds_total = start.elapsed().as_secs_f64();
         stats
     }
+}
+
+/// The near-field weights of `baked` for `m` lit points (none when `on` is
+/// false).
+fn near_weights(baked: &Baked, on: bool, m: usize) -> NearFieldWeights {
+    let none = Default::default();
+    let nf = if on { &baked.near_field } else { &none };
+    NearFieldWeights::new(nf, &baked.samples, baked.patches.len(), m)
 }
 
 fn add_gather(stats: &mut FrameStats, g: &GatherStats, active: usize, groups: usize) {
