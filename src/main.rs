@@ -478,7 +478,7 @@ struct BakeArgs {
     /// Rays per patch of the rays method (16..=1048576, default 16384).
     #[arg(long, value_name = "N")]
     ff_rays_per_patch: Option<u32>,
-    /// Rays per patch of the near-field correction (0..=65520; 0: none):
+    /// Rays per patch of the near-field correction (0..=65535; 0: none):
     /// the first reflection from a close neighbour uses the part of it the
     /// patch sees, not its mean (docs/accuracy.md).
     #[arg(long, value_name = "N", default_value_t = radiosity::bake::near_field::DEFAULT_RAYS)]

@@ -997,6 +997,9 @@ fn with_near_field() -> BakeFile {
                 },
                 NearLink { patch: 0, counts },
             ],
+            shares: (0..5)
+                .map(|j| std::array::from_fn(|k| if k == j { 0.5 } else { 0.5 / 15.0 }))
+                .collect(),
         },
         ..sample()
     }
@@ -1065,6 +1068,13 @@ fn near_field_errors_name_the_section_and_the_value() {
             "expected",
         ),
         (
+            Box::new(move |b: &mut Vec<u8>| {
+                let at = links_at + 3 * 36 + 64 + 4;
+                b[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes())
+            }),
+            "patch 1: cell shares",
+        ),
+        (
             Box::new(|b: &mut Vec<u8>| b[8..12].copy_from_slice(&4u32.to_le_bytes())),
             "4 cells per link",
         ),
@@ -1073,7 +1083,7 @@ fn near_field_errors_name_the_section_and_the_value() {
             "link starts decrease",
         ),
     ];
-    assert_eq!(near.len(), 16 + 4 * 6 + 3 * 36);
+    assert_eq!(near.len(), 16 + 4 * 6 + 3 * 36 + 5 * 64);
     for (f, want) in cases {
         let (_, m) = reject(&with(&*f));
         assert!(m.contains("NEAR") && m.contains(want), "{want}: {m}");

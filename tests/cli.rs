@@ -320,7 +320,7 @@ fn bad_options_and_devices_are_refused() {
     assert_eq!(o.status.code(), Some(1));
     let e = stderr(&o);
     assert!(
-        e.contains("--near-field-rays") && e.contains("70000") && e.contains("65520"),
+        e.contains("--near-field-rays") && e.contains("70000") && e.contains("65535"),
         "{e}"
     );
     let o = radiosity(&["bake", p, "--device", "99"]);

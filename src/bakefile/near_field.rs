@@ -15,11 +15,17 @@
 //! Voronoi cells on the real surface). The run time, with `b_jk = ρ_j
 //! D_jk` the exitance at those points and `B0_j` their mean, forms
 //!
-//! `c_i = Σ_j Σ_k (c_ijk / rays − F̂_ij / m) b_jk`,  `F̂_ij = Σ_k c_ijk / rays`
+//! `c_i = Σ_j Σ_k (c_ijk − C_ij s_jk) / rays · b_jk`,  `C_ij = Σ_k c_ijk`
 //!
-//! (`m` the sample points it lights; each weight's sum over `k` is zero, so
-//! a uniformly lit neighbour adds nothing and emission, uniform per patch,
-//! needs none), and since `T = (I − Fρ)⁻¹ F`, the corrected irradiance
+//! with `s_jk` the share of `j`'s area nearest its point `k` (its cell's
+//! area; stored per patch). Each weight's sum over `k` is zero, so a
+//! uniformly lit neighbour adds nothing and emission, uniform per patch,
+//! needs none; and a neighbour that a receiver sees evenly by area (far
+//! away) adds nothing either, whatever the cells' sizes — weighting by
+//! `1/m` instead of `s_jk` would add the difference between the cells'
+//! area-weighted mean of `b` and the plain mean `B0` uses, a bias with no
+//! physical meaning (on Sponza's camera view it made the indirect image
+//! darker). Then, and since `T = (I − Fρ)⁻¹ F`, the corrected irradiance
 //! through all bounces is `H = T̃ · (B0 + ρ ∘ c) + c`: one sparse product
 //! before the gather and one addition after it.
 //!
@@ -35,7 +41,8 @@
 //! link `u32` (= [`SAMPLES_PER_PATCH`]), reserved `u32` = 0 — then `n + 1`
 //! link starts (`u32`, receiver `i`'s links are `starts[i]..starts[i+1]`),
 //! then `m` links of 36 bytes: the neighbour (`u32`, file order), then its
-//! 16 cell counts (`u16`).
+//! 16 cell counts (`u16`); then per patch its 16 cell shares (`f32`, each
+//! ≥ 0, summing to 1).
 
 use super::surface::{PatchSamples, SAMPLES_PER_PATCH};
 
@@ -47,6 +54,9 @@ pub const MIN_FORM_FACTOR: f64 = 0.02;
 
 /// Bytes of one stored link.
 pub const LINK_LEN: usize = 4 + 2 * SAMPLES_PER_PATCH;
+
+/// Bytes of one patch's cell shares.
+pub const SHARES_LEN: u64 = 4 * SAMPLES_PER_PATCH as u64;
 
 /// One receiver's view of one near neighbour.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -68,6 +78,9 @@ pub struct NearField {
     /// has one representation, the default).
     pub starts: Vec<u32>,
     pub links: Vec<NearLink>,
+    /// Per patch (empty when `rays == 0`): the share of its area in each
+    /// sample point's cell.
+    pub shares: Vec<[f32; SAMPLES_PER_PATCH]>,
 }
 
 impl NearField {
@@ -109,6 +122,9 @@ impl NearField {
                 out.extend_from_slice(&c.to_le_bytes());
             }
         }
+        for s in self.shares.iter().flatten() {
+            out.extend_from_slice(&s.to_le_bytes());
+        }
         out
     }
 
@@ -131,7 +147,7 @@ impl NearField {
         if reserved != 0 {
             return Err(format!("reserved field is {reserved}, must be 0"));
         }
-        let want = (n as u64 + 1) * 4 + m as u64 * LINK_LEN as u64 + 16;
+        let want = (n as u64 + 1) * 4 + m as u64 * LINK_LEN as u64 + 16 + n as u64 * SHARES_LEN;
         if b.len() as u64 != want {
             return Err(format!(
                 "{} bytes, expected {want} for {n} patches and {m} links",
@@ -151,10 +167,16 @@ impl NearField {
                 }
             })
             .collect();
+        let base = base + LINK_LEN * m;
+        let f32_at = |at: usize| f32::from_le_bytes(b[at..at + 4].try_into().expect("4 bytes"));
+        let shares = (0..n)
+            .map(|j| std::array::from_fn(|k| f32_at(base + SHARES_LEN as usize * j + 4 * k)))
+            .collect();
         let nf = NearField {
             rays,
             starts,
             links,
+            shares,
         };
         nf.check(n)?;
         Ok(nf)
@@ -172,12 +194,21 @@ impl NearField {
                 Err(format!("{} links stored for 0 rays", self.links.len()))
             };
         }
-        if self.starts.len() != n + 1 {
+        if self.starts.len() != n + 1 || self.shares.len() != n {
             return Err(format!(
-                "{} link starts for {n} patches ({} expected)",
+                "{} link starts and {} cell shares for {n} patches ({} and {n} expected)",
                 self.starts.len(),
+                self.shares.len(),
                 n + 1
             ));
+        }
+        for (j, s) in self.shares.iter().enumerate() {
+            let sum: f64 = s.iter().map(|&v| v as f64).sum();
+            if s.iter().any(|v| !(v.is_finite() && *v >= 0.0)) || (sum - 1.0).abs() > 1e-4 {
+                return Err(format!(
+                    "patch {j}: cell shares {s:?} are not finite numbers ≥ 0 summing to 1"
+                ));
+            }
         }
         if self.starts[0] != 0 || self.starts[n] as usize != self.links.len() {
             return Err(format!(
@@ -222,6 +253,7 @@ impl NearField {
             rays: self.rays,
             starts: Vec::with_capacity(order.len() + 1),
             links: Vec::with_capacity(self.links.len()),
+            shares: order.iter().map(|&o| self.shares[o as usize]).collect(),
         };
         out.starts.push(0);
         for &o in order {

@@ -19,7 +19,8 @@ pub struct NearFieldWeights {
     /// Per link: the neighbour (matrix order).
     pub patch: Vec<u32>,
     /// Per link: the weight of each of the neighbour's `m` lit points
-    /// (slots `m..16` are 0), `(c_g − Σ c / m) / rays`.
+    /// (slots `m..16` are 0), `(c_g − C s_g) / rays` over the cells merged
+    /// into point `g`.
     pub weights: Vec<[f32; SAMPLES_PER_PATCH]>,
 }
 
@@ -44,19 +45,15 @@ impl NearFieldWeights {
             weights: Vec::with_capacity(nf.links.len()),
         };
         for l in &nf.links {
-            let mut c = [0.0f64; SAMPLES_PER_PATCH];
+            let j = l.patch as usize;
+            let total: f64 = l.counts.iter().map(|&v| v as f64).sum();
+            let mut w = [0.0f64; SAMPLES_PER_PATCH];
             for (k, &v) in l.counts.iter().enumerate() {
-                c[groups[l.patch as usize][k] as usize] += v as f64;
+                w[groups[j][k] as usize] += v as f64 - total * nf.shares[j][k] as f64;
             }
-            let mean = c.iter().sum::<f64>() / m as f64;
             out.patch.push(l.patch);
-            out.weights.push(std::array::from_fn(|g| {
-                if g < m {
-                    ((c[g] - mean) / rays) as f32
-                } else {
-                    0.0
-                }
-            }));
+            out.weights
+                .push(std::array::from_fn(|g| (w[g] / rays) as f32));
         }
         out
     }

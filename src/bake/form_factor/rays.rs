@@ -239,54 +239,14 @@ fn emit(
     row: &mut [f32],
 ) -> RowCounts {
     let mut c = RowCounts::default();
-    let mut fans = Vec::new();
-    let mut total = 0.0;
-    for &k in pieces {
-        let g = &geo[k];
-        for t in 1..g.poly.len().saturating_sub(1) {
-            let (a, b, cc) = (g.poly[0], g.poly[t], g.poly[t + 1]);
-            let area =
-                0.5 * crate::core::math::norm(crate::core::math::cross(sub(b, a), sub(cc, a)));
-            if area > 0.0 {
-                total += area;
-                let piece = &vox.pieces[k];
-                fans.push(Fan {
-                    a,
-                    b,
-                    c: cc,
-                    normal: g.normal,
-                    cum: total,
-                    partial: (piece.visible < 1.0).then_some(piece.tri),
-                });
-            }
-        }
-    }
-    if fans.is_empty() {
+    let origins = Origins::of_patch(i, pieces, geo, vox, 0x9e37_79b9_7f4a_7c15);
+    if origins.fans.is_empty() {
         return c;
     }
-    // A Cranley–Patterson rotation of the sequence per patch (seeded:
-    // deterministic, and different patches do not share their errors).
-    let mut rng =
-        SplitMix64::new(0x9e37_79b9_7f4a_7c15 ^ (i as u64).wrapping_mul(0xd6e8_feb8_6659_fd93));
-    let rotation: [f64; 4] = std::array::from_fn(|_| rng.uniform());
     let mut f = 0usize;
     for k in 0..rays {
-        // The fan triangle at the area quantile (k + ½)/N (quantiles grow
-        // with k, so the search only moves forward).
-        let q = (k as f64 + 0.5) / rays as f64 * total;
-        while f + 1 < fans.len() && fans[f].cum < q {
-            f += 1;
-        }
-        let t = &fans[f];
-        let r: [f64; 4] = std::array::from_fn(|d| (rotation[d] + R4[d] * k as f64).fract());
-        let (mut u, mut v) = (r[0], r[1]);
-        if u + v > 1.0 {
-            u = 1.0 - u;
-            v = 1.0 - v;
-        }
-        let x = add(t.a, add(scale(sub(t.b, t.a), u), scale(sub(t.c, t.a), v)));
-        let n = t.normal;
-        if t.partial.is_some_and(|tri| cover.covered(x, n, tri)) {
+        let (x, n, partial, r) = origins.point(k, rays, &mut f);
+        if partial.is_some_and(|tri| cover.covered(x, n, tri)) {
             c.covered += 1;
             continue;
         }
@@ -321,6 +281,91 @@ fn emit(
         }
     }
     c
+}
+
+/// Ray origins spread over a patch's pieces by area (module doc): the
+/// fan triangles of its pieces with their cumulative area, and a seeded
+/// rotation of the quasi-random sequence.
+pub(crate) struct Origins {
+    fans: Vec<Fan>,
+    total: f64,
+    rotation: [f64; 4],
+}
+
+impl Origins {
+    /// The origins of patch `i` (voxelization order) made of `pieces`;
+    /// `seed` picks the rotation (different stages use different ones).
+    pub(crate) fn of_patch(
+        i: usize,
+        pieces: &[usize],
+        geo: &[PieceGeo],
+        vox: &Voxelization,
+        seed: u64,
+    ) -> Origins {
+        let mut fans = Vec::new();
+        let mut total = 0.0;
+        for &k in pieces {
+            let g = &geo[k];
+            for t in 1..g.poly.len().saturating_sub(1) {
+                let (a, b, cc) = (g.poly[0], g.poly[t], g.poly[t + 1]);
+                let area =
+                    0.5 * crate::core::math::norm(crate::core::math::cross(sub(b, a), sub(cc, a)));
+                if area > 0.0 {
+                    total += area;
+                    let piece = &vox.pieces[k];
+                    fans.push(Fan {
+                        a,
+                        b,
+                        c: cc,
+                        normal: g.normal,
+                        cum: total,
+                        partial: (piece.visible < 1.0).then_some(piece.tri),
+                    });
+                }
+            }
+        }
+        // A Cranley–Patterson rotation of the sequence per patch (seeded:
+        // deterministic, and different patches do not share their errors).
+        let mut rng = SplitMix64::new(seed ^ (i as u64).wrapping_mul(0xd6e8_feb8_6659_fd93));
+        let rotation: [f64; 4] = std::array::from_fn(|_| rng.uniform());
+        Origins {
+            fans,
+            total,
+            rotation,
+        }
+    }
+
+    /// Whether the patch has any area to cast from.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.fans.is_empty()
+    }
+
+    /// Ray `k` of `rays`: its origin, the piece's normal, the piece's
+    /// triangle when the piece is partly covered (the origin must then be
+    /// tested), and the sequence's point (the last two coordinates give
+    /// the direction). `f` is the fan cursor, starting at 0: quantiles grow
+    /// with `k`, so the search only moves forward.
+    pub(crate) fn point(
+        &self,
+        k: usize,
+        rays: usize,
+        f: &mut usize,
+    ) -> ([f64; 3], [f64; 3], Option<u32>, [f64; 4]) {
+        // The fan triangle at the area quantile (k + ½)/N.
+        let q = (k as f64 + 0.5) / rays as f64 * self.total;
+        while *f + 1 < self.fans.len() && self.fans[*f].cum < q {
+            *f += 1;
+        }
+        let t = &self.fans[*f];
+        let r: [f64; 4] = std::array::from_fn(|d| (self.rotation[d] + R4[d] * k as f64).fract());
+        let (mut u, mut v) = (r[0], r[1]);
+        if u + v > 1.0 {
+            u = 1.0 - u;
+            v = 1.0 - v;
+        }
+        let x = add(t.a, add(scale(sub(t.b, t.a), u), scale(sub(t.c, t.a), v)));
+        (x, t.normal, t.partial, r)
+    }
 }
 
 /// The unit normal of a BVH triangle (its winding), from its stored f32
