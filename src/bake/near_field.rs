@@ -23,14 +23,13 @@
 //! percent (`docs/accuracy.md`).
 
 use super::error::BakeError;
-use super::form_factor::rays::{cosine_direction, geo_normal, Origins};
+use super::form_factor::rays::{cosine_direction, Hit, Origins, Tracer};
 use super::form_factor::shift_of;
 use super::pieces::{self, PieceLookup};
 use super::voxelize::{Cover, Voxelization};
 use crate::bakefile::near_field::{NearField, NearLink, MIN_FORM_FACTOR};
 use crate::bakefile::surface::{PatchSamples, SAMPLES_PER_PATCH};
 use crate::core::bvh::Bvh;
-use crate::core::math::{add, dot, scale, sub};
 use crate::core::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -93,13 +92,16 @@ pub fn build(
     let bvh = Bvh::build(&scene.positions, &scene.triangles, shift);
     let normals: Vec<[f64; 3]> = scene.triangle_normals();
     let cover = Cover::new(scene, &vox.grid, &bvh, &normals);
-    let (lo, hi) = scene.bounds();
-    let extent = (0..3)
-        .map(|a| (hi[a] - lo[a]) as f64)
-        .fold(0.0, f64::max)
-        .max(1e-30);
-    let offset = 1e-4 * extent;
-    let far = 4.0 * extent;
+    let (offset, far) = Tracer::offset_and_far(scene);
+    let tracer = Tracer {
+        bvh: &bvh,
+        cover: &cover,
+        lookup: &lookup,
+        vox,
+        shift,
+        offset,
+        far,
+    };
     let point = |s: usize| samples.position[s].map(f64::from);
     let nearest = |j: usize, y: [f64; 3]| -> usize {
         let base = j * SAMPLES_PER_PATCH;
@@ -162,24 +164,12 @@ pub fn build(
                     covered += 1;
                     continue;
                 }
-                let d = cosine_direction(nrm, r[2], r[3]);
-                let o = sub(add(x, scale(nrm, offset)), shift);
-                let Some((mut leaf, tp)) = bvh.closest_hit(o, scale(d, far)) else {
+                let Hit::Owned { patch, y } =
+                    tracer.trace(x, nrm, cosine_direction(nrm, r[2], r[3]))
+                else {
                     continue;
                 };
-                if dot(geo_normal(&bvh, leaf), d) >= 0.0 {
-                    match cover.front_at(o, d, tp * far, u32::MAX) {
-                        Some(front) => leaf = front,
-                        None => continue,
-                    }
-                }
-                let tri = bvh.order[leaf as usize] as usize;
-                let y = add(add(o, scale(d, tp * far)), shift);
-                let Some(j) = lookup
-                    .find(vox, tri, y)
-                    .and_then(|p| vox.pieces[p].patch)
-                    .and_then(|v| patch_index_of[v as usize])
-                else {
+                let Some(j) = patch_index_of[patch as usize] else {
                     continue;
                 };
                 if j as usize == i {

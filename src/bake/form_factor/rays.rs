@@ -122,13 +122,16 @@ pub fn form_factors(
     let bvh = Bvh::build(&scene.positions, &scene.triangles, shift);
     let normals: Vec<[f64; 3]> = scene.triangle_normals();
     let cover = Cover::new(scene, &vox.grid, &bvh, &normals);
-    let (lo, hi) = scene.bounds();
-    let extent = (0..3)
-        .map(|a| (hi[a] - lo[a]) as f64)
-        .fold(0.0, f64::max)
-        .max(1e-30);
-    let offset = 1e-4 * extent;
-    let far = 4.0 * extent;
+    let (offset, far) = Tracer::offset_and_far(scene);
+    let tracer = Tracer {
+        bvh: &bvh,
+        cover: &cover,
+        lookup: &lookup,
+        vox,
+        shift,
+        offset,
+        far,
+    };
     let mut counts = vec![0.0f32; n * n];
     let pairs_start = Instant::now();
     let mut rows: Vec<RowCounts> = Vec::with_capacity(n);
@@ -140,20 +143,7 @@ pub fn form_factors(
             .enumerate()
             .map(|(k, row)| {
                 let i = ci * chunk + k;
-                emit(
-                    i,
-                    &by_patch[i],
-                    &geo,
-                    vox,
-                    &lookup,
-                    &bvh,
-                    shift,
-                    offset,
-                    far,
-                    rays,
-                    &cover,
-                    row,
-                )
+                emit(i, &by_patch[i], &geo, &tracer, rays, row)
             })
             .collect();
         rows.extend(r);
@@ -228,59 +218,100 @@ fn emit(
     i: usize,
     pieces: &[usize],
     geo: &[PieceGeo],
-    vox: &Voxelization,
-    lookup: &PieceLookup,
-    bvh: &Bvh,
-    shift: [f64; 3],
-    offset: f64,
-    far: f64,
+    tracer: &Tracer,
     rays: usize,
-    cover: &Cover,
     row: &mut [f32],
 ) -> RowCounts {
     let mut c = RowCounts::default();
-    let origins = Origins::of_patch(i, pieces, geo, vox, 0x9e37_79b9_7f4a_7c15);
-    if origins.fans.is_empty() {
+    let origins = Origins::of_patch(i, pieces, geo, tracer.vox, 0x9e37_79b9_7f4a_7c15);
+    if origins.is_empty() {
         return c;
     }
     let mut f = 0usize;
     for k in 0..rays {
         let (x, n, partial, r) = origins.point(k, rays, &mut f);
-        if partial.is_some_and(|tri| cover.covered(x, n, tri)) {
+        if partial.is_some_and(|tri| tracer.cover.covered(x, n, tri)) {
             c.covered += 1;
             continue;
         }
-        let d = cosine_direction(n, r[2], r[3]);
-        let o = sub(add(x, scale(n, offset)), shift);
-        match bvh.closest_hit(o, scale(d, far)) {
-            None => c.escaped += 1,
-            Some((mut leaf, tp)) => {
-                if dot(geo_normal(bvh, leaf), d) >= 0.0 {
-                    // The back of a surface, unless a front face coincides
-                    // with it (a two-sided surface modelled as two
-                    // triangles, or `Scene::with_back_sides`): then that
-                    // front face is what the ray meets (the cover rule's).
-                    match cover.front_at(o, d, tp * far, u32::MAX) {
-                        Some(front) => leaf = front,
-                        None => {
-                            c.back += 1;
-                            continue;
-                        }
-                    }
-                }
-                let tri = bvh.order[leaf as usize] as usize;
-                let y = add(add(o, scale(d, tp * far)), shift);
-                match lookup.find(vox, tri, y).and_then(|p| vox.pieces[p].patch) {
-                    Some(j) => {
-                        row[j as usize] += 1.0;
-                        c.owned += 1;
-                    }
-                    None => c.unowned += 1,
-                }
+        match tracer.trace(x, n, cosine_direction(n, r[2], r[3])) {
+            Hit::Escaped => c.escaped += 1,
+            Hit::Back => c.back += 1,
+            Hit::Unowned => c.unowned += 1,
+            Hit::Owned { patch, .. } => {
+                row[patch as usize] += 1.0;
+                c.owned += 1;
             }
         }
     }
     c
+}
+
+/// What a ray from a patch's real surface meets ([`Tracer::trace`]).
+pub(crate) enum Hit {
+    /// Nothing: it left the scene.
+    Escaped,
+    /// The back of a surface.
+    Back,
+    /// A front face at `y` (world) whose piece no patch owns.
+    Unowned,
+    /// A front face at `y` of a piece of voxelization patch `patch`.
+    Owned { patch: u32, y: [f64; 3] },
+}
+
+/// The scene as the rays see it: the original triangles' BVH (shifted to
+/// the grid's centre), the cover rule for coinciding faces, the piece
+/// lookup, and the origins' lift and the rays' length from the scene's
+/// extent.
+pub(crate) struct Tracer<'a> {
+    pub bvh: &'a Bvh,
+    pub cover: &'a Cover<'a>,
+    pub lookup: &'a PieceLookup,
+    pub vox: &'a Voxelization,
+    pub shift: [f64; 3],
+    pub offset: f64,
+    pub far: f64,
+}
+
+impl Tracer<'_> {
+    /// The lift of ray origins along the normal and the rays' length: 1e-4
+    /// and 4 times the scene's largest extent.
+    pub(crate) fn offset_and_far(scene: &Scene) -> (f64, f64) {
+        let (lo, hi) = scene.bounds();
+        let extent = (0..3)
+            .map(|a| (hi[a] - lo[a]) as f64)
+            .fold(0.0, f64::max)
+            .max(1e-30);
+        (1e-4 * extent, 4.0 * extent)
+    }
+
+    /// The ray from `x` (world, on a surface of normal `n`) along `d`.
+    pub(crate) fn trace(&self, x: [f64; 3], n: [f64; 3], d: [f64; 3]) -> Hit {
+        let o = sub(add(x, scale(n, self.offset)), self.shift);
+        let Some((mut leaf, tp)) = self.bvh.closest_hit(o, scale(d, self.far)) else {
+            return Hit::Escaped;
+        };
+        if dot(geo_normal(self.bvh, leaf), d) >= 0.0 {
+            // The back of a surface, unless a front face coincides with it
+            // (a two-sided surface modelled as two triangles, or
+            // `Scene::with_back_sides`): then that front face is what the
+            // ray meets (the cover rule's).
+            match self.cover.front_at(o, d, tp * self.far, u32::MAX) {
+                Some(front) => leaf = front,
+                None => return Hit::Back,
+            }
+        }
+        let tri = self.bvh.order[leaf as usize] as usize;
+        let y = add(add(o, scale(d, tp * self.far)), self.shift);
+        match self
+            .lookup
+            .find(self.vox, tri, y)
+            .and_then(|p| self.vox.pieces[p].patch)
+        {
+            Some(patch) => Hit::Owned { patch, y },
+            None => Hit::Unowned,
+        }
+    }
 }
 
 /// Ray origins spread over a patch's pieces by area (module doc): the
