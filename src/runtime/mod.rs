@@ -13,7 +13,8 @@
 //!    sample points, `H = T̃ · (B0 + ρ ∘ c) + c` ([`near_field`]).
 //!
 //! **What a frame skips.** The products are kept per light and for the
-//! emission: `H = T̃ E + Σ_l T̃ (ρ ∘ D_l)`, each term the gather of its own
+//! emission: `H = T̃ E + Σ_l (T̃ (ρ ∘ D_l + ρ ∘ c_l) + c_l)`, `c_l` the
+//! near-field correction of light `l`, each term the gather of its own
 //! `B0` over that term's non-zero columns only. A frame recomputes the
 //! terms whose light (or emission scales) changed — so moving one spot
 //! light costs one direct pass for that light and one gather over the
@@ -59,7 +60,7 @@ pub struct RuntimeOptions {
     /// Use the AVX-512 gather where the CPU has it.
     pub simd: bool,
     /// Apply the bake's near-field correction ([`near_field`]; off only
-    /// to measure what it does).
+    /// to measure what it does). Read when the run time is made.
     pub near_field: bool,
 }
 
