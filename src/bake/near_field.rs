@@ -23,13 +23,11 @@
 //! percent (`docs/accuracy.md`).
 
 use super::error::BakeError;
-use super::form_factor::rays::{cosine_direction, Hit, Origins, Tracer};
-use super::form_factor::shift_of;
-use super::pieces::{self, PieceLookup};
-use super::voxelize::{Cover, Voxelization};
+use super::form_factor::rays::{cosine_direction, Hit, Origins, RayScene, Tracer};
+use super::pieces;
+use super::voxelize::Voxelization;
 use crate::bakefile::near_field::{NearField, NearLink, MIN_FORM_FACTOR};
 use crate::bakefile::surface::{PatchSamples, SAMPLES_PER_PATCH};
-use crate::core::bvh::Bvh;
 use crate::core::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -79,28 +77,15 @@ pub fn build(
         });
     }
     let cast = rays;
-    let lookup = PieceLookup::new(vox, scene.triangles.len());
     let geo = pieces::geometry(scene, vox);
     let by_patch = pieces::by_patch(vox);
-    let mut vox_of = vec![usize::MAX; n];
-    for (v, m) in patch_index_of.iter().enumerate() {
-        if let Some(m) = m {
-            vox_of[*m as usize] = v;
-        }
-    }
-    let shift = shift_of(&vox.grid);
-    let bvh = Bvh::build(&scene.positions, &scene.triangles, shift);
-    let normals: Vec<[f64; 3]> = scene.triangle_normals();
-    let cover = Cover::new(scene, &vox.grid, &bvh, &normals);
-    let (offset, far) = Tracer::offset_and_far(scene);
+    let vox_of = pieces::vox_of(patch_index_of, n);
+    let rs = RayScene::new(scene, vox);
+    let cover = rs.cover(scene, vox);
     let tracer = Tracer {
-        bvh: &bvh,
+        rays: &rs,
         cover: &cover,
-        lookup: &lookup,
         vox,
-        shift,
-        offset,
-        far,
     };
     let point = |s: usize| samples.position[s].map(f64::from);
     let nearest = |j: usize, y: [f64; 3]| -> usize {

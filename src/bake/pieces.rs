@@ -71,6 +71,18 @@ pub fn by_patch(vox: &Voxelization) -> Vec<Vec<usize>> {
     out
 }
 
+/// Per matrix patch (`0..n`), its voxelization patch, from `patch_index_of`
+/// (voxelization patch → matrix patch); `usize::MAX` where none maps to it.
+pub fn vox_of(patch_index_of: &[Option<u32>], n: usize) -> Vec<usize> {
+    let mut out = vec![usize::MAX; n];
+    for (v, m) in patch_index_of.iter().enumerate() {
+        if let Some(m) = m {
+            out[*m as usize] = v;
+        }
+    }
+    out
+}
+
 /// From a point on a triangle to the triangle's piece holding it.
 pub struct PieceLookup {
     /// Triangle `t`'s pieces are `vox.pieces[start[t]..start[t + 1]]`

@@ -107,12 +107,7 @@ pub fn build(
     let geo = pieces::geometry(scene, vox);
 
     // Matrix patch -> voxelization patch, and its pieces.
-    let mut vox_of = vec![usize::MAX; n];
-    for (i, m) in patch_index_of.iter().enumerate() {
-        if let Some(m) = m {
-            vox_of[*m as usize] = i;
-        }
-    }
+    let vox_of = pieces::vox_of(patch_index_of, n);
     if let Some(m) = vox_of.iter().position(|&v| v == usize::MAX) {
         return Err(BakeError::Mismatch {
             stage: "surface map",

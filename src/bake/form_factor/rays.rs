@@ -117,20 +117,12 @@ pub fn form_factors(
     let rays = options.rays_per_patch as usize;
     let geo = pieces::geometry(scene, vox);
     let by_patch = pieces::by_patch(vox);
-    let lookup = PieceLookup::new(vox, scene.triangles.len());
-    let shift = super::shift_of(&vox.grid);
-    let bvh = Bvh::build(&scene.positions, &scene.triangles, shift);
-    let normals: Vec<[f64; 3]> = scene.triangle_normals();
-    let cover = Cover::new(scene, &vox.grid, &bvh, &normals);
-    let (offset, far) = Tracer::offset_and_far(scene);
+    let rs = RayScene::new(scene, vox);
+    let cover = rs.cover(scene, vox);
     let tracer = Tracer {
-        bvh: &bvh,
+        rays: &rs,
         cover: &cover,
-        lookup: &lookup,
         vox,
-        shift,
-        offset,
-        far,
     };
     let mut counts = vec![0.0f32; n * n];
     let pairs_start = Instant::now();
@@ -158,7 +150,7 @@ pub fn form_factors(
         patches: n as u64,
         pairs_total: (n as u64) * (n as u64).saturating_sub(1) / 2,
         rays_cast: (n * rays) as u64,
-        bvh: bvh.stats.clone(),
+        bvh: rs.bvh.stats.clone(),
         seconds_pairs,
         ..Default::default()
     };
@@ -260,50 +252,72 @@ pub(crate) enum Hit {
 }
 
 /// The scene as the rays see it: the original triangles' BVH (shifted to
-/// the grid's centre), the cover rule for coinciding faces, the piece
-/// lookup, and the origins' lift and the rays' length from the scene's
-/// extent.
-pub(crate) struct Tracer<'a> {
-    pub bvh: &'a Bvh,
-    pub cover: &'a Cover<'a>,
-    pub lookup: &'a PieceLookup,
-    pub vox: &'a Voxelization,
-    pub shift: [f64; 3],
-    pub offset: f64,
-    pub far: f64,
+/// the grid's centre, [`super::shift_of`]), their normals (for the cover
+/// rule), the piece lookup, and the origins' lift along the normal and the
+/// rays' length: 1e-4 and 4 times the scene's largest extent. Built once
+/// per stage that casts rays from the real surfaces.
+pub(crate) struct RayScene {
+    pub bvh: Bvh,
+    normals: Vec<[f64; 3]>,
+    lookup: PieceLookup,
+    shift: [f64; 3],
+    offset: f64,
+    far: f64,
 }
 
-impl Tracer<'_> {
-    /// The lift of ray origins along the normal and the rays' length: 1e-4
-    /// and 4 times the scene's largest extent.
-    pub(crate) fn offset_and_far(scene: &Scene) -> (f64, f64) {
+impl RayScene {
+    pub(crate) fn new(scene: &Scene, vox: &Voxelization) -> RayScene {
+        let shift = super::shift_of(&vox.grid);
         let (lo, hi) = scene.bounds();
         let extent = (0..3)
             .map(|a| (hi[a] - lo[a]) as f64)
             .fold(0.0, f64::max)
             .max(1e-30);
-        (1e-4 * extent, 4.0 * extent)
+        RayScene {
+            bvh: Bvh::build(&scene.positions, &scene.triangles, shift),
+            normals: scene.triangle_normals(),
+            lookup: PieceLookup::new(vox, scene.triangles.len()),
+            shift,
+            offset: 1e-4 * extent,
+            far: 4.0 * extent,
+        }
     }
 
+    /// The covered-point rule over this BVH ([`Cover`]).
+    pub(crate) fn cover<'a>(&'a self, scene: &Scene, vox: &Voxelization) -> Cover<'a> {
+        Cover::new(scene, &vox.grid, &self.bvh, &self.normals)
+    }
+}
+
+/// A [`RayScene`] with its cover rule and the voxelization whose pieces
+/// own what the rays meet.
+pub(crate) struct Tracer<'a> {
+    pub rays: &'a RayScene,
+    pub cover: &'a Cover<'a>,
+    pub vox: &'a Voxelization,
+}
+
+impl Tracer<'_> {
     /// The ray from `x` (world, on a surface of normal `n`) along `d`.
     pub(crate) fn trace(&self, x: [f64; 3], n: [f64; 3], d: [f64; 3]) -> Hit {
-        let o = sub(add(x, scale(n, self.offset)), self.shift);
-        let Some((mut leaf, tp)) = self.bvh.closest_hit(o, scale(d, self.far)) else {
+        let rs = self.rays;
+        let o = sub(add(x, scale(n, rs.offset)), rs.shift);
+        let Some((mut leaf, tp)) = rs.bvh.closest_hit(o, scale(d, rs.far)) else {
             return Hit::Escaped;
         };
-        if dot(geo_normal(self.bvh, leaf), d) >= 0.0 {
+        if dot(geo_normal(&rs.bvh, leaf), d) >= 0.0 {
             // The back of a surface, unless a front face coincides with it
             // (a two-sided surface modelled as two triangles, or
             // `Scene::with_back_sides`): then that front face is what the
             // ray meets (the cover rule's).
-            match self.cover.front_at(o, d, tp * self.far, u32::MAX) {
+            match self.cover.front_at(o, d, tp * rs.far, u32::MAX) {
                 Some(front) => leaf = front,
                 None => return Hit::Back,
             }
         }
-        let tri = self.bvh.order[leaf as usize] as usize;
-        let y = add(add(o, scale(d, tp * self.far)), self.shift);
-        match self
+        let tri = rs.bvh.order[leaf as usize] as usize;
+        let y = add(add(o, scale(d, tp * rs.far)), rs.shift);
+        match rs
             .lookup
             .find(self.vox, tri, y)
             .and_then(|p| self.vox.pieces[p].patch)
