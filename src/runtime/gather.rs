@@ -112,8 +112,9 @@ struct SparseRt {
     /// RGB9E5 words (precision RGB9E5) or values (`channels` per entry).
     packed: Vec<u32>,
     values: Vec<f32>,
-    /// RGB9E5: `2^(e − 24) / scale_c` per exponent and channel.
-    exp_factor: [[f32; 3]; 32],
+    /// RGB9E5: `2^(e − 24) / scale_c` per exponent and channel (and a
+    /// zero lane).
+    exp_factor: [[f32; 4]; 32],
     channels: usize,
     rgb9e5: bool,
 }
@@ -266,7 +267,7 @@ impl CompressedGather {
         }
         let sp = &e.sparse;
         let rgb9e5 = sp.precision == SparseValues::Rgb9e5 && !sp.is_empty();
-        let mut exp_factor = [[0.0f32; 3]; 32];
+        let mut exp_factor = [[0.0f32; 4]; 32];
         for (ex, f) in exp_factor.iter_mut().enumerate() {
             for (fc, s) in f.iter_mut().zip(sp.scale) {
                 *fc = (2f64.powi(ex as i32 - 24) / s as f64) as f32;
@@ -378,9 +379,30 @@ impl CompressedGather {
         // Channels of B0 to multiply: one when both the matrix and B0 are grey.
         let out_ch = if self.channels == 1 && grey_b0 { 1 } else { 3 };
         let tile = self.tile;
-        let results: Vec<(Vec<[f32; 3]>, GatherStats)> = (0..self.tiles_per_side)
+        // The AVX2 path reads B0 by group of 4 columns, padded; the sparse
+        // part's common case by column, channels side by side.
+        let b0p = if self.simd && self.format == DenseFormat::Bc1 && simd_kind() == "avx2" {
+            b0_groups(b0)
+        } else {
+            Vec::new()
+        };
+        let b0x: Vec<[f32; 4]> = if self.sparse.rgb9e5 && out_ch == 3 {
+            (0..n)
+                .map(|j| [b0[0][j], b0[1][j], b0[2][j], 0.0])
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let inputs = RowInputs {
+            b0,
+            b0p: &b0p,
+            b0x: &b0x,
+            active,
+            out_ch,
+        };
+        let results: Vec<(Vec<[f32; 4]>, GatherStats)> = (0..self.tiles_per_side)
             .into_par_iter()
-            .map(|tr| self.tile_row(tr, b0, active, out_ch))
+            .map(|tr| self.tile_row(tr, &inputs))
             .collect();
         let mut stats = GatherStats {
             bytes_read: self.bytes_index,
@@ -403,18 +425,20 @@ impl CompressedGather {
         stats
     }
 
-    /// One row of tiles: its rows of `H` (dense, then sparse).
-    fn tile_row(
-        &self,
-        tr: usize,
-        b0: [&[f32]; 3],
-        active: &ActiveColumns,
-        out_ch: usize,
-    ) -> (Vec<[f32; 3]>, GatherStats) {
+    /// One row of tiles: its rows of `H` (dense, then sparse; the fourth
+    /// lane is padding).
+    fn tile_row(&self, tr: usize, inputs: &RowInputs) -> (Vec<[f32; 4]>, GatherStats) {
+        let RowInputs {
+            b0,
+            b0p,
+            b0x,
+            active,
+            out_ch,
+        } = *inputs;
         let tile = self.tile;
         let h = tile.min(self.image - tr * tile);
         let mut stats = GatherStats::default();
-        let mut rows = vec![[0.0f32; 3]; h];
+        let mut rows = vec![[0.0f32; 4]; h];
         match self.format {
             DenseFormat::Bc1 | DenseFormat::Bc4 => {
                 // Per block row and output channel: 16 lanes (row r, column
@@ -475,10 +499,7 @@ impl CompressedGather {
                     // SAFETY: `simd_kind` checked AVX2 and FMA.
                     unsafe {
                         let tables = self.bc1.as_ref().expect("BC1 tables");
-                        bc1_row_avx2(
-                            (&self.dense[..], &fast_cols[..], b0, self.n, tables),
-                            &mut acc,
-                        );
+                        bc1_row_avx2(&self.dense, &fast_cols, b0p, tables, &mut acc);
                     }
                 } else if fast {
                     // SAFETY: `simd` is set only when the CPU reports AVX-512F.
@@ -562,9 +583,22 @@ impl CompressedGather {
                     continue;
                 }
                 stats.bytes_read += (b - a) as u64 * entry_bytes;
+                let jb = tc * tile;
+                if sp.rgb9e5 && out_ch == 3 {
+                    // The common case, without per-entry branches (the same
+                    // operations in the same order as the general loop).
+                    sparse_rgb9e5(
+                        &sp.pos[a..b],
+                        &sp.packed[a..b],
+                        &sp.exp_factor,
+                        &b0x[jb..],
+                        &mut rows,
+                    );
+                    continue;
+                }
                 for e in a..b {
                     let p = sp.pos[e];
-                    let (r, j) = ((p >> 8) as usize, tc * tile + (p & 0xff) as usize);
+                    let (r, j) = ((p >> 8) as usize, jb + (p & 0xff) as usize);
                     let v: [f32; 3] = if sp.rgb9e5 {
                         let p = sp.packed[e];
                         let f = &sp.exp_factor[(p >> 27) as usize];
@@ -650,6 +684,49 @@ impl CompressedGather {
                     }
                 }
             }
+        }
+    }
+}
+
+/// What every row of tiles of one product reads besides the matrix.
+#[derive(Clone, Copy)]
+struct RowInputs<'a> {
+    b0: [&'a [f32]; 3],
+    /// [`b0_groups`] where the AVX2 path runs, else empty.
+    b0p: &'a [[[f32; 4]; 3]],
+    /// `B0` by column, channels side by side, where [`sparse_rgb9e5`]
+    /// runs, else empty.
+    b0x: &'a [[f32; 4]],
+    active: &'a ActiveColumns,
+    /// Channels multiplied: 1 when the matrix and `B0` are both grey.
+    out_ch: usize,
+}
+
+/// The sparse part's common case (RGB9E5 values, three channels): one
+/// column group's entries into `rows`, per entry its three channels in
+/// 4-lane arrays (`b0x` starts at the tile's first column). The same
+/// operations in the same order as the general loop, so the same bits:
+/// per channel the mantissa times its exponent's factor, times `B0`,
+/// added to the row.
+fn sparse_rgb9e5(
+    pos: &[u16],
+    packed: &[u32],
+    exp_factor: &[[f32; 4]; 32],
+    b0x: &[[f32; 4]],
+    rows: &mut [[f32; 4]],
+) {
+    for (&p, &w) in pos.iter().zip(packed) {
+        let f = &exp_factor[(w >> 27) as usize];
+        let m = [
+            (w & 0x1ff) as f32,
+            ((w >> 9) & 0x1ff) as f32,
+            ((w >> 18) & 0x1ff) as f32,
+            0.0,
+        ];
+        let b = &b0x[(p & 0xff) as usize];
+        let row = &mut rows[(p >> 8) as usize];
+        for c in 0..4 {
+            row[c] += m[c] * f[c] * b[c];
         }
     }
 }
@@ -766,85 +843,205 @@ unsafe fn bc1_row_avx512<const BH: usize>(
     }
 }
 
+/// How many active block columns [`bc1_row_avx2`] takes through all its
+/// block rows before moving on: 128 columns are 8 KiB of blocks, 16 KiB of
+/// decoded keys and 6 KiB of `B0`, which stay in L1 while the 8 block rows
+/// pass over them.
+#[cfg(target_arch = "x86_64")]
+const AVX2_SEGMENT: usize = 128;
+
+/// `B0` by group of 4 columns, the three channels of a group side by side
+/// and zero past `n`: what [`bc1_row_avx2`] broadcasts per block column,
+/// without bounds checks.
+pub(crate) fn b0_groups(b0: [&[f32]; 3]) -> Vec<[[f32; 4]; 3]> {
+    let n = b0[0].len();
+    (0..n.div_ceil(4))
+        .map(|g| {
+            std::array::from_fn(|c| {
+                std::array::from_fn(|k| b0[c].get(4 * g + k).copied().unwrap_or(0.0))
+            })
+        })
+        .collect()
+}
+
+/// The palette-table keys of one BC1 block (`word`: its 8 bytes, little
+/// endian): byte offsets of its red, green and blue palettes in the
+/// [`Bc1Table`]s (`[mode][e0 << bits | e1]`, 16 bytes per entry), and its
+/// 32 index bits.
+#[cfg(target_arch = "x86_64")]
+fn bc1_keys(word: u64) -> [u32; 4] {
+    let c0 = (word & 0xffff) as u32;
+    let c1 = ((word >> 16) & 0xffff) as u32;
+    let mode = u32::from(c0 > c1);
+    let kr = (mode << 10) | ((c0 >> 11) << 5) | (c1 >> 11);
+    let kg = (mode << 12) | (((c0 >> 5) & 63) << 6) | ((c1 >> 5) & 63);
+    let kb = (mode << 10) | ((c0 & 31) << 5) | (c1 & 31);
+    [kr << 4, kg << 4, kb << 4, (word >> 32) as u32]
+}
+
 /// A BC1 row of tiles on AVX2 + FMA: the [`bc1_row_avx512`] arithmetic in
 /// 8-lane vectors, a block's 16 entries as two halves (its rows 0–1 and
 /// 2–3). With 16 vector registers the accumulators of a whole row of tiles
-/// do not fit, so the block rows go outermost: one block row's 6
-/// accumulators stay in registers while the active block columns pass,
-/// reading each column's 8 bytes for that row (the row of tiles' columns
-/// stay in L2 between block rows). Per accumulator lane the columns are
-/// added in the same order as on AVX-512.
+/// do not fit, so the work goes by segments of [`AVX2_SEGMENT`] active
+/// block columns:
+/// - first the palette keys of every block of the segment are computed
+///   eight blocks (one block column) at a time in vector registers and
+///   stored by block row (the scalar key arithmetic was most of the
+///   instructions per block);
+/// - then per block row its 6 accumulators stay in registers while the
+///   segment's columns pass: per block one index broadcast, two shifts,
+///   three palette loads, six in-lane shuffles (`vpermilps`) and six fused
+///   multiply-adds, with `B0` from [`b0_groups`].
+///
+/// The segment's blocks stay in L1 between block rows. (Before segments,
+/// every block row passed over the whole row of tiles, whose blocks, `B0`
+/// and palette tables overflow L2 at 16k patches.) The key pass prefetches
+/// the column [`PREFETCH_AHEAD`] places on, as the AVX-512 path does. Per
+/// accumulator lane the columns are added in the same order as on AVX-512,
+/// whatever the segment length.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn bc1_row_avx2((dense, cols, b0, n, tables): RowArgs, acc: &mut [[[f32; 16]; 3]]) {
+unsafe fn bc1_row_avx2(
+    dense: &[u8],
+    cols: &[(u32, u32)],
+    b0p: &[[[f32; 4]; 3]],
+    tables: &[Bc1Table; 3],
+    acc: &mut [[[f32; 16]; 3]],
+) {
     use std::arch::x86_64::*;
+    let bh = acc.len();
     let shifts_lo = _mm256_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14);
     let shifts_hi = _mm256_setr_epi32(16, 18, 20, 22, 24, 26, 28, 30);
-    let three = _mm256_set1_epi32(3);
-    let (v0, v1, v2) = (&tables[0].values, &tables[1].values, &tables[2].values);
+    let (t0, t1, t2) = (
+        tables[0].values.as_ptr() as *const u8,
+        tables[1].values.as_ptr() as *const u8,
+        tables[2].values.as_ptr() as *const u8,
+    );
+    // keys[k * AVX2_SEGMENT + ci]: block row k of the segment's column ci.
+    let mut keys = vec![[0u32; 4]; 8 * AVX2_SEGMENT];
+    let kp = keys.as_mut_ptr() as *mut u32;
+    // Per column of the segment: its group's entry in `b0p`.
+    let mut groups = [0usize; AVX2_SEGMENT];
+    // Vector key arithmetic (bc1_keys, eight blocks at once).
+    let even = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+    let lo16 = _mm256_set1_epi32(0xffff);
+    let (m5, m6) = (_mm256_set1_epi32(31), _mm256_set1_epi32(63));
+    let (mode_rb, mode_g) = (_mm256_set1_epi32(1 << 10), _mm256_set1_epi32(1 << 12));
     // No closures below: intrinsics inside a closure may not be inlined
     // into this AVX2 function.
-    for (k, a) in acc.iter_mut().enumerate() {
-        let (mut lr, mut lg, mut lb) = (
-            _mm256_loadu_ps(a[0].as_ptr()),
-            _mm256_loadu_ps(a[1].as_ptr()),
-            _mm256_loadu_ps(a[2].as_ptr()),
-        );
-        let (mut hr, mut hg, mut hb) = (
-            _mm256_loadu_ps(a[0].as_ptr().add(8)),
-            _mm256_loadu_ps(a[1].as_ptr().add(8)),
-            _mm256_loadu_ps(a[2].as_ptr().add(8)),
-        );
-        for &(off, c0) in cols {
-            let c0 = c0 as usize;
-            let (br, bg, bb) = if c0 + 4 <= n {
-                (
-                    _mm256_broadcast_ps(&*(b0[0].as_ptr().add(c0) as *const __m128)),
-                    _mm256_broadcast_ps(&*(b0[1].as_ptr().add(c0) as *const __m128)),
-                    _mm256_broadcast_ps(&*(b0[2].as_ptr().add(c0) as *const __m128)),
-                )
-            } else {
-                let mut q = [[0.0f32; 4]; 3];
-                for (c, qc) in q.iter_mut().enumerate() {
-                    for (i, x) in qc.iter_mut().enumerate() {
-                        if c0 + i < n {
-                            *x = *b0[c].get_unchecked(c0 + i);
-                        }
-                    }
+    for (si, seg) in cols.chunks(AVX2_SEGMENT).enumerate() {
+        for (ci, &(off, c0)) in seg.iter().enumerate() {
+            groups[ci] = c0 as usize / 4;
+            // A hint (no effect on results).
+            if let Some(&(next, _)) = cols.get(si * AVX2_SEGMENT + ci + PREFETCH_AHEAD) {
+                _mm_prefetch::<_MM_HINT_T0>(dense.as_ptr().add(next as usize) as *const i8);
+            }
+            let col = dense.as_ptr().add(off as usize);
+            if bh == 8 {
+                // Blocks 0–3 and 4–7: endpoints in the low dword of each
+                // 8-byte block, indices in the high one.
+                let a =
+                    _mm256_permutevar8x32_epi32(_mm256_loadu_si256(col as *const __m256i), even);
+                let b = _mm256_permutevar8x32_epi32(
+                    _mm256_loadu_si256(col.add(32) as *const __m256i),
+                    even,
+                );
+                let ends = _mm256_permute2x128_si256::<0x20>(a, b);
+                let idx = _mm256_permute2x128_si256::<0x31>(a, b);
+                let c0 = _mm256_and_si256(ends, lo16);
+                let c1 = _mm256_srli_epi32::<16>(ends);
+                let mode = _mm256_cmpgt_epi32(c0, c1);
+                let kr = _mm256_or_si256(
+                    _mm256_or_si256(
+                        _mm256_slli_epi32::<5>(_mm256_srli_epi32::<11>(c0)),
+                        _mm256_srli_epi32::<11>(c1),
+                    ),
+                    _mm256_and_si256(mode, mode_rb),
+                );
+                let kg = _mm256_or_si256(
+                    _mm256_or_si256(
+                        _mm256_slli_epi32::<6>(_mm256_and_si256(_mm256_srli_epi32::<5>(c0), m6)),
+                        _mm256_and_si256(_mm256_srli_epi32::<5>(c1), m6),
+                    ),
+                    _mm256_and_si256(mode, mode_g),
+                );
+                let kb = _mm256_or_si256(
+                    _mm256_or_si256(
+                        _mm256_slli_epi32::<5>(_mm256_and_si256(c0, m5)),
+                        _mm256_and_si256(c1, m5),
+                    ),
+                    _mm256_and_si256(mode, mode_rb),
+                );
+                let (kr, kg, kb) = (
+                    _mm256_slli_epi32::<4>(kr),
+                    _mm256_slli_epi32::<4>(kg),
+                    _mm256_slli_epi32::<4>(kb),
+                );
+                // Transpose to one [kr, kg, kb, idx] per block.
+                let rg_lo = _mm256_unpacklo_epi32(kr, kg);
+                let rg_hi = _mm256_unpackhi_epi32(kr, kg);
+                let bi_lo = _mm256_unpacklo_epi32(kb, idx);
+                let bi_hi = _mm256_unpackhi_epi32(kb, idx);
+                let q0 = _mm256_unpacklo_epi64(rg_lo, bi_lo); // blocks 0, 4
+                let q1 = _mm256_unpackhi_epi64(rg_lo, bi_lo); // blocks 1, 5
+                let q2 = _mm256_unpacklo_epi64(rg_hi, bi_hi); // blocks 2, 6
+                let q3 = _mm256_unpackhi_epi64(rg_hi, bi_hi); // blocks 3, 7
+                for (k, q) in [(0, q0), (1, q1), (2, q2), (3, q3)] {
+                    let p0 = kp.add(4 * (k * AVX2_SEGMENT + ci)) as *mut __m128i;
+                    let p4 = kp.add(4 * ((k + 4) * AVX2_SEGMENT + ci)) as *mut __m128i;
+                    _mm_storeu_si128(p0, _mm256_castsi256_si128(q));
+                    _mm_storeu_si128(p4, _mm256_extracti128_si256::<1>(q));
                 }
-                (
-                    _mm256_broadcast_ps(&*(q[0].as_ptr() as *const __m128)),
-                    _mm256_broadcast_ps(&*(q[1].as_ptr() as *const __m128)),
-                    _mm256_broadcast_ps(&*(q[2].as_ptr() as *const __m128)),
-                )
-            };
-            let blk = dense.as_ptr().add(off as usize + 8 * k);
-            let word = (blk as *const u64).read_unaligned();
-            let c0w = (word & 0xffff) as u32;
-            let c1w = ((word >> 16) & 0xffff) as u32;
-            let idx = _mm256_set1_epi32((word >> 32) as u32 as i32);
-            let mode = usize::from(c0w > c1w);
-            let kr = (mode << 10) + ((((c0w >> 11) << 5) | (c1w >> 11)) as usize);
-            let kg = (mode << 12) + (((((c0w >> 5) & 63) << 6) | ((c1w >> 5) & 63)) as usize);
-            let kb = (mode << 10) + ((((c0w & 31) << 5) | (c1w & 31)) as usize);
-            let ilo = _mm256_and_si256(_mm256_srlv_epi32(idx, shifts_lo), three);
-            let ihi = _mm256_and_si256(_mm256_srlv_epi32(idx, shifts_hi), three);
-            let pr = _mm256_broadcast_ps(&*(v0.get_unchecked(kr).as_ptr() as *const __m128));
-            let pg = _mm256_broadcast_ps(&*(v1.get_unchecked(kg).as_ptr() as *const __m128));
-            let pb = _mm256_broadcast_ps(&*(v2.get_unchecked(kb).as_ptr() as *const __m128));
-            lr = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(pr, ilo), br, lr);
-            hr = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(pr, ihi), br, hr);
-            lg = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(pg, ilo), bg, lg);
-            hg = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(pg, ihi), bg, hg);
-            lb = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(pb, ilo), bb, lb);
-            hb = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(pb, ihi), bb, hb);
+            } else {
+                for k in 0..bh {
+                    let word = (col.add(8 * k) as *const u64).read_unaligned();
+                    *keys.get_unchecked_mut(k * AVX2_SEGMENT + ci) = bc1_keys(word);
+                }
+            }
         }
-        _mm256_storeu_ps(a[0].as_mut_ptr(), lr);
-        _mm256_storeu_ps(a[0].as_mut_ptr().add(8), hr);
-        _mm256_storeu_ps(a[1].as_mut_ptr(), lg);
-        _mm256_storeu_ps(a[1].as_mut_ptr().add(8), hg);
-        _mm256_storeu_ps(a[2].as_mut_ptr(), lb);
-        _mm256_storeu_ps(a[2].as_mut_ptr().add(8), hb);
+        for (k, a) in acc.iter_mut().enumerate() {
+            let (mut lr, mut lg, mut lb) = (
+                _mm256_loadu_ps(a[0].as_ptr()),
+                _mm256_loadu_ps(a[1].as_ptr()),
+                _mm256_loadu_ps(a[2].as_ptr()),
+            );
+            let (mut hr, mut hg, mut hb) = (
+                _mm256_loadu_ps(a[0].as_ptr().add(8)),
+                _mm256_loadu_ps(a[1].as_ptr().add(8)),
+                _mm256_loadu_ps(a[2].as_ptr().add(8)),
+            );
+            let row = kp.add(4 * k * AVX2_SEGMENT);
+            for (ci, &g) in groups[..seg.len()].iter().enumerate() {
+                let key = row.add(4 * ci);
+                let b = b0p.get_unchecked(g).as_ptr() as *const __m128;
+                let (br, bg, bb) = (
+                    _mm256_broadcast_ps(&*b),
+                    _mm256_broadcast_ps(&*b.add(1)),
+                    _mm256_broadcast_ps(&*b.add(2)),
+                );
+                let idx = _mm256_set1_epi32(*key.add(3) as i32);
+                // vpermilps picks within each 128-bit half by the low two
+                // bits of each lane, so the shifted indices need no mask
+                // and the palette (in both halves) costs one cheap shuffle.
+                let ilo = _mm256_srlv_epi32(idx, shifts_lo);
+                let ihi = _mm256_srlv_epi32(idx, shifts_hi);
+                let pr = _mm256_broadcast_ps(&*(t0.add(*key as usize) as *const __m128));
+                let pg = _mm256_broadcast_ps(&*(t1.add(*key.add(1) as usize) as *const __m128));
+                let pb = _mm256_broadcast_ps(&*(t2.add(*key.add(2) as usize) as *const __m128));
+                lr = _mm256_fmadd_ps(_mm256_permutevar_ps(pr, ilo), br, lr);
+                hr = _mm256_fmadd_ps(_mm256_permutevar_ps(pr, ihi), br, hr);
+                lg = _mm256_fmadd_ps(_mm256_permutevar_ps(pg, ilo), bg, lg);
+                hg = _mm256_fmadd_ps(_mm256_permutevar_ps(pg, ihi), bg, hg);
+                lb = _mm256_fmadd_ps(_mm256_permutevar_ps(pb, ilo), bb, lb);
+                hb = _mm256_fmadd_ps(_mm256_permutevar_ps(pb, ihi), bb, hb);
+            }
+            _mm256_storeu_ps(a[0].as_mut_ptr(), lr);
+            _mm256_storeu_ps(a[0].as_mut_ptr().add(8), hr);
+            _mm256_storeu_ps(a[1].as_mut_ptr(), lg);
+            _mm256_storeu_ps(a[1].as_mut_ptr().add(8), hg);
+            _mm256_storeu_ps(a[2].as_mut_ptr(), lb);
+            _mm256_storeu_ps(a[2].as_mut_ptr().add(8), hb);
+        }
     }
 }
 
