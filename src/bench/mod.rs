@@ -60,6 +60,65 @@ pub fn memory_bandwidth_triad() -> f64 {
     (12 * n) as f64 / best
 }
 
+/// The machine's peak rate of f32 fused multiply-adds, in lane operations
+/// per second on all threads (rayon): per thread 12 independent chains of
+/// 8-lane FMAs (AVX2 + FMA; enough chains to cover the FMA latency on two
+/// pipes), the best of 5. `None` where the CPU has no AVX2 and FMA. The
+/// compute roof the gather's multiply-adds are held against, as the triad
+/// is the memory roof.
+pub fn fma_peak() -> Option<f64> {
+    use rayon::prelude::*;
+    #[cfg(target_arch = "x86_64")]
+    {
+        if !(std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("fma"))
+        {
+            return None;
+        }
+        let threads = rayon::current_num_threads();
+        let iters = 4_000_000usize;
+        let mut best = f64::INFINITY;
+        for _ in 0..5 {
+            let t = Instant::now();
+            let s: f32 = (0..threads)
+                .into_par_iter()
+                // SAFETY: AVX2 and FMA checked above.
+                .map(|_| unsafe { fma_chains(iters) })
+                .sum();
+            std::hint::black_box(s);
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+        Some((threads * iters * 12 * 8) as f64 / best)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        None
+    }
+}
+
+/// `iters` rounds of 12 independent 8-lane FMAs; returns their sum so that
+/// nothing is optimised away.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn fma_chains(iters: usize) -> f32 {
+    use std::arch::x86_64::*;
+    let a = _mm256_set1_ps(std::hint::black_box(0.999_9));
+    let b = _mm256_set1_ps(std::hint::black_box(1e-7));
+    let mut acc = [_mm256_set1_ps(1.0); 12];
+    for _ in 0..iters {
+        for x in acc.iter_mut() {
+            *x = _mm256_fmadd_ps(*x, a, b);
+        }
+    }
+    let mut lanes = [0.0f32; 8];
+    let mut sum = _mm256_setzero_ps();
+    for x in acc {
+        sum = _mm256_add_ps(sum, x);
+    }
+    _mm256_storeu_ps(lanes.as_mut_ptr(), sum);
+    lanes.iter().sum()
+}
+
 pub fn best_of<T>(
     repeat: usize,
     mut f: impl FnMut() -> anyhow::Result<T>,

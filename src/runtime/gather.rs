@@ -449,7 +449,11 @@ impl CompressedGather {
                 // keeps the 24 accumulators in registers: the active block
                 // columns (byte offset, first column) are listed first.
                 let fast = self.simd && self.format == DenseFormat::Bc1;
-                let mut fast_cols: Vec<(u32, u32)> = Vec::new();
+                let mut fast_cols: Vec<(u32, u32)> = Vec::with_capacity(if fast {
+                    (self.row_start[tr + 1] - self.row_start[tr]) as usize * tile / 4
+                } else {
+                    0
+                });
                 for slot in self.row_start[tr] as usize..self.row_start[tr + 1] as usize {
                     let tc = self.cols[slot] as usize;
                     if !active.tile[tc] {
@@ -917,8 +921,10 @@ unsafe fn bc1_row_avx2(
         tables[1].values.as_ptr() as *const u8,
         tables[2].values.as_ptr() as *const u8,
     );
-    // keys[k * AVX2_SEGMENT + ci]: block row k of the segment's column ci.
-    let mut keys = vec![[0u32; 4]; 8 * AVX2_SEGMENT];
+    // keys[k * stride + ci]: block row k of the segment's column ci (sized
+    // to the columns there are: few where most are skipped).
+    let stride = AVX2_SEGMENT.min(cols.len());
+    let mut keys = vec![[0u32; 4]; bh * stride];
     let kp = keys.as_mut_ptr() as *mut u32;
     // Per column of the segment: its group's entry in `b0p`.
     let mut groups = [0usize; AVX2_SEGMENT];
@@ -987,15 +993,15 @@ unsafe fn bc1_row_avx2(
                 let q2 = _mm256_unpacklo_epi64(rg_hi, bi_hi); // blocks 2, 6
                 let q3 = _mm256_unpackhi_epi64(rg_hi, bi_hi); // blocks 3, 7
                 for (k, q) in [(0, q0), (1, q1), (2, q2), (3, q3)] {
-                    let p0 = kp.add(4 * (k * AVX2_SEGMENT + ci)) as *mut __m128i;
-                    let p4 = kp.add(4 * ((k + 4) * AVX2_SEGMENT + ci)) as *mut __m128i;
+                    let p0 = kp.add(4 * (k * stride + ci)) as *mut __m128i;
+                    let p4 = kp.add(4 * ((k + 4) * stride + ci)) as *mut __m128i;
                     _mm_storeu_si128(p0, _mm256_castsi256_si128(q));
                     _mm_storeu_si128(p4, _mm256_extracti128_si256::<1>(q));
                 }
             } else {
                 for k in 0..bh {
                     let word = (col.add(8 * k) as *const u64).read_unaligned();
-                    *keys.get_unchecked_mut(k * AVX2_SEGMENT + ci) = bc1_keys(word);
+                    *keys.get_unchecked_mut(k * stride + ci) = bc1_keys(word);
                 }
             }
         }
@@ -1010,7 +1016,7 @@ unsafe fn bc1_row_avx2(
                 _mm256_loadu_ps(a[1].as_ptr().add(8)),
                 _mm256_loadu_ps(a[2].as_ptr().add(8)),
             );
-            let row = kp.add(4 * k * AVX2_SEGMENT);
+            let row = kp.add(4 * k * stride);
             for (ci, &g) in groups[..seg.len()].iter().enumerate() {
                 let key = row.add(4 * ci);
                 let b = b0p.get_unchecked(g).as_ptr() as *const __m128;
