@@ -141,3 +141,37 @@ fn random_lights_are_seeded_and_valid() {
         cfg.validate().unwrap();
     }
 }
+
+/// The direct pass's per-patch points, with each light's last blocker tried
+/// first (`DirectLight::at_points_each`), give the same bits as each point
+/// alone (`at_points`): on a floor under a roof, lit by random spot and
+/// directional lights, points spread over the whole floor.
+#[test]
+fn cached_blockers_change_no_bit_of_the_direct_light() {
+    let (s, _) = floor(true);
+    let dl = DirectLight::new(&s);
+    let lights = random_lights(s.bounds(), 8, 5);
+    let mut blocked = 0;
+    for row in 0..16 {
+        // A row of points at z, x from −0.5 to 0.5: half under the roof.
+        let z = -0.5 + (row as f64 + 0.5) / 16.0;
+        let points: Vec<([f64; 3], [f64; 3])> = (0..24)
+            .map(|i| ([-0.5 + (i as f64 + 0.5) / 24.0, 0.0, z], [0.0, 1.0, 0.0]))
+            .collect();
+        let each = dl.at_points_each(&points, &lights);
+        for (p, e) in points.iter().zip(&each) {
+            let alone = dl.at_points(std::slice::from_ref(p), &lights);
+            assert_eq!(alone.map(f64::to_bits), e.map(f64::to_bits), "at {:?}", p.0);
+            for l in &lights {
+                let one = dl.at_points(std::slice::from_ref(p), std::slice::from_ref(l));
+                if one == [0.0; 3] {
+                    blocked += 1;
+                }
+            }
+        }
+    }
+    assert!(
+        blocked > 0,
+        "some light is blocked somewhere: the cache is exercised"
+    );
+}

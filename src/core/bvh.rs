@@ -422,8 +422,19 @@ impl Bvh {
         &self,
         o: [f64; 3],
         d: [f64; 3],
-        mut ignore: impl FnMut(u32, f64) -> bool,
+        ignore: impl FnMut(u32, f64) -> bool,
     ) -> Option<u32> {
+        self.any_hit_leaf(o, d, ignore).map(|(_, k)| k)
+    }
+
+    /// [`Bvh::any_hit`], also returning the leaf node that holds the
+    /// triangle, for [`Bvh::hits_in_leaf`].
+    pub fn any_hit_leaf(
+        &self,
+        o: [f64; 3],
+        d: [f64; 3],
+        mut ignore: impl FnMut(u32, f64) -> bool,
+    ) -> Option<(u32, u32)> {
         if self.tris.is_empty() {
             return None;
         }
@@ -438,7 +449,7 @@ impl Bvh {
                 for k in n.left..n.left + n.count {
                     if let Some(t) = intersect(&self.tris[k as usize], o, d) {
                         if !ignore(k, t) {
-                            return Some(k);
+                            return Some((node, k));
                         }
                     }
                 }
@@ -477,6 +488,20 @@ impl Bvh {
 }
 
 impl Bvh {
+    /// Whether triangle `k` of leaf node `leaf` (as [`Bvh::any_hit_leaf`]
+    /// returned them) crosses the segment `o + t d`, `t ∈ [0, 1]`, with the
+    /// leaf's box crossed too: exactly when [`Bvh::any_hit`] without a
+    /// filter would reach that triangle. The segment crosses every
+    /// ancestor's box then, since the boxes contain the leaf's and the slab
+    /// test is monotonic in the bounds, even rounded; so a `true` here
+    /// means `any_hit` returns some hit. A shadow ray can test the last
+    /// occluder of a neighbouring ray first (`core::direct`).
+    pub fn hits_in_leaf(&self, leaf: u32, k: u32, o: [f64; 3], d: [f64; 3]) -> bool {
+        let inv = d.map(|x| 1.0 / x);
+        slab(&self.nodes[leaf as usize], o, inv).is_some()
+            && intersect(&self.tris[k as usize], o, d).is_some()
+    }
+
     /// The nearest triangle crossing the segment `o + t d`, `t ∈ (0, 1]`:
     /// its leaf-order index and `t`; `None` when none does. Children are
     /// visited nearer first and a subtree is skipped once its box lies
@@ -766,5 +791,63 @@ mod tests {
             let brute = bvh.tris.iter().any(|t| intersect(t, o, d).is_some());
             assert_eq!(bvh.any_hit(o, d, |_, _| false).is_some(), brute);
         }
+    }
+
+    /// `hits_in_leaf` never claims a hit that `any_hit` would not find:
+    /// the blocker of one ray tried on the next rays from nearby origins
+    /// (as the direct pass does), and on the ray itself.
+    #[test]
+    fn a_hit_in_a_cached_leaf_is_a_hit_of_the_traversal() {
+        let mut s = 777u64;
+        let mut rnd = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        // A grid of unit squares (two triangles each) at y = 1: shared
+        // edges, where the widened triangle test reaches past a leaf.
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for i in 0..12u32 {
+            for j in 0..12u32 {
+                let b = positions.len() as u32;
+                let (x, z) = (i as f32, j as f32);
+                positions.extend([
+                    [x, 1.0, z],
+                    [x + 1.0, 1.0, z],
+                    [x + 1.0, 1.0, z + 1.0],
+                    [x, 1.0, z + 1.0],
+                ]);
+                triangles.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
+            }
+        }
+        let bvh = Bvh::build(&positions, &triangles, [0.0; 3]);
+        let (mut reused, mut tried) = (0, 0);
+        let mut last = None;
+        for _ in 0..20_000 {
+            // Origins anywhere below the grid, directions upwards.
+            let o = [12.0 * rnd(), 0.5 * rnd(), 12.0 * rnd()];
+            let d = [rnd() - 0.5, 1.0 + rnd(), rnd() - 0.5];
+            let hit = bvh.any_hit_leaf(o, d, |_, _| false);
+            if let Some((leaf, k)) = last {
+                tried += 1;
+                if bvh.hits_in_leaf(leaf, k, o, d) {
+                    reused += 1;
+                    assert!(
+                        hit.is_some(),
+                        "cached leaf {leaf}, triangle {k}: a hit the traversal misses"
+                    );
+                }
+            }
+            if let Some((leaf, k)) = hit {
+                assert!(bvh.hits_in_leaf(leaf, k, o, d), "a ray's own hit");
+                last = hit;
+            }
+        }
+        assert!(
+            reused > 0 && reused < tried,
+            "{reused} of {tried}: the check saw both cases"
+        );
     }
 }

@@ -1,8 +1,9 @@
 //! Direct light on patches per frame (DESIGN.md run time step 2): `D_j` is
 //! the mean irradiance over the patch's sample points on its real triangle
 //! pieces ([`crate::bakefile::surface`]), each shadowed by a ray against the
-//! original triangles ([`crate::core::direct::DirectLight::at_points`], the
-//! one definition of each light in [`crate::core::light`]). The first
+//! original triangles ([`crate::core::direct::DirectLight::at_points_each`],
+//! which tries each light's last blocker among a patch's points before the
+//! BVH; the one definition of each light is in [`crate::core::light`]). The first
 //! [`DEFAULT_SAMPLES`] of the 16 stored points are used by default: a patch
 //! half in shadow then gets 4/8 of the light, within 1/8; the points are in
 //! a progressive order, so any count is spread over the patch. `B0 = ρ ∘ D
@@ -42,16 +43,17 @@ pub fn irradiance(
     let per: Vec<(Vec<[f64; 3]>, [f64; 3])> = (0..n)
         .into_par_iter()
         .map(|j| {
-            let points: Vec<[f64; 3]> = (0..s)
+            let at: Vec<([f64; 3], [f64; 3])> = (0..s)
                 .map(|k| {
                     let i = j * SAMPLES_PER_PATCH + k;
-                    let p = (
+                    (
                         baked.samples.position[i].map(f64::from),
                         baked.samples.normal[i].map(f64::from),
-                    );
-                    dl.at_points(std::slice::from_ref(&p), lights)
+                    )
                 })
                 .collect();
+            // The patch's points share their occluders (DirectLight::at_points_each).
+            let points = dl.at_points_each(&at, lights);
             let mut mean = [0.0f64; 3];
             for p in &points {
                 for c in 0..3 {
