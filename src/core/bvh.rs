@@ -794,17 +794,12 @@ mod tests {
     }
 
     /// `hits_in_leaf` never claims a hit that `any_hit` would not find:
-    /// the blocker of one ray tried on the next rays from nearby origins
-    /// (as the direct pass does), and on the ray itself.
+    /// the last blocker tried on the next ray (as the direct pass does),
+    /// and on the ray itself.
     #[test]
     fn a_hit_in_a_cached_leaf_is_a_hit_of_the_traversal() {
-        let mut s = 777u64;
-        let mut rnd = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::core::math::SplitMix64::new(777);
+        let mut rnd = || rng.uniform();
         // A grid of unit squares (two triangles each) at y = 1: shared
         // edges, where the widened triangle test reaches past a leaf.
         let mut positions = Vec::new();
