@@ -81,49 +81,61 @@ impl DirectLight {
 
     /// The irradiance at each of `points` (position, unit normal) from
     /// `lights`, as [`DirectLight::at_points`] gives it for that point
-    /// alone (the same bits). The points are meant to be close together (a
-    /// patch's sample points): per light, the triangle that blocked the
-    /// last shadow ray is tried first, and only when it does not block the
-    /// next one is the BVH traversed ([`Bvh::hits_in_leaf`] says exactly
-    /// when the traversal would have found a hit, so visibility is
-    /// unchanged). Points in the shadow of one roof then cost one triangle
-    /// test each instead of a traversal.
+    /// alone (the same bits), with one [`ShadowCache`] across the points:
+    /// meant for points close together (a patch's sample points).
     pub fn at_points_each(
         &self,
         points: &[([f64; 3], [f64; 3])],
         lights: &[Light],
     ) -> Vec<[f64; 3]> {
-        let mut last: Vec<Option<(u32, u32)>> = vec![None; lights.len()];
+        let mut cache = ShadowCache::new(lights.len());
         points
             .iter()
-            .map(|(x, n)| {
-                let x = add(*x, scale(*n, self.offset));
-                let mut d = [0.0; 3];
-                for (light, blocker) in lights.iter().zip(last.iter_mut()) {
-                    if let Some(inc) = incident(light, x, *n, self.far) {
-                        let dir = sub(inc.shadow_end, x);
-                        let blocked = match *blocker {
-                            Some((leaf, k)) if self.bvh.hits_in_leaf(leaf, k, x, dir) => true,
-                            _ => {
-                                let hit = self.bvh.any_hit_leaf(x, dir, |_, _| false);
-                                if hit.is_some() {
-                                    *blocker = hit;
-                                }
-                                hit.is_some()
-                            }
-                        };
-                        if !blocked {
-                            for (dc, e) in d.iter_mut().zip(inc.irradiance) {
-                                *dc += e;
-                            }
+            .map(|&(x, n)| self.at_point_cached(x, n, lights, &mut cache))
+            .collect()
+    }
+
+    /// The irradiance at the point `x` with unit normal `n` from `lights`,
+    /// as [`DirectLight::at_points`] gives it for that point alone (the
+    /// same bits). Per light, the triangle that blocked the last shadow ray
+    /// of `cache` is tried first, and only when it does not block this one
+    /// is the BVH traversed ([`Bvh::hits_in_leaf`] says exactly when the
+    /// traversal would have found a hit, so visibility is unchanged).
+    /// Neighbouring points in the shadow of one roof then cost one
+    /// triangle test each instead of a traversal.
+    pub fn at_point_cached(
+        &self,
+        x: [f64; 3],
+        n: [f64; 3],
+        lights: &[Light],
+        cache: &mut ShadowCache,
+    ) -> [f64; 3] {
+        let x = add(x, scale(n, self.offset));
+        let mut d = [0.0; 3];
+        cache.last.resize(lights.len(), None);
+        for (light, blocker) in lights.iter().zip(cache.last.iter_mut()) {
+            if let Some(inc) = incident(light, x, n, self.far) {
+                let dir = sub(inc.shadow_end, x);
+                let blocked = match *blocker {
+                    Some((leaf, k)) if self.bvh.hits_in_leaf(leaf, k, x, dir) => true,
+                    _ => {
+                        let hit = self.bvh.any_hit_leaf(x, dir, |_, _| false);
+                        if hit.is_some() {
+                            *blocker = hit;
                         }
+                        hit.is_some()
+                    }
+                };
+                if !blocked {
+                    for (dc, e) in d.iter_mut().zip(inc.irradiance) {
+                        *dc += e;
                     }
                 }
-                // `at_points` over one point divides this sum by 1, which
-                // changes no bit.
-                d
-            })
-            .collect()
+            }
+        }
+        // `at_points` over one point divides this sum by 1, which changes
+        // no bit.
+        d
     }
 
     /// The offset of shadow rays' origins along the normal (scene units).
@@ -146,6 +158,23 @@ impl DirectLight {
     /// The length of shadow rays towards directional lights.
     pub fn far(&self) -> f64 {
         self.far
+    }
+}
+
+/// Per light, the leaf and triangle that blocked its last shadow ray
+/// ([`DirectLight::at_point_cached`]); one per thread and run of nearby
+/// points (a patch's sample points, a row of pixels).
+#[derive(Clone, Debug, Default)]
+pub struct ShadowCache {
+    last: Vec<Option<(u32, u32)>>,
+}
+
+impl ShadowCache {
+    /// An empty cache for `lights` lights (it grows if asked for more).
+    pub fn new(lights: usize) -> ShadowCache {
+        ShadowCache {
+            last: vec![None; lights],
+        }
     }
 }
 

@@ -15,6 +15,7 @@
 use super::surface::{self, Lookup};
 use super::texture::Albedo;
 use super::Runtime;
+use crate::core::direct::ShadowCache;
 use crate::core::math::{add, cross, dot, normalize, scale, sub};
 use crate::core::scene_config::{Camera, SceneConfig};
 use rayon::prelude::*;
@@ -143,6 +144,8 @@ pub fn render(
             let mut s = RenderStats::default();
             let mut row = vec![[0.0f32; 3]; width];
             let mut cov = vec![false; width];
+            // Neighbouring pixels share their shadows' blockers.
+            let mut shadows = ShadowCache::new(lights.len());
             for px in 0..width {
                 s.pixels += 1;
                 let (o, d) = rays.ray(px, py);
@@ -177,7 +180,7 @@ pub fn render(
                 }
                 let hx = surface::apply(&w, h);
                 let dx = if matches!(view, View::Final | View::Direct) {
-                    rt.direct.at_points(&[(x, ng)], lights)
+                    rt.direct.at_point_cached(x, ng, lights, &mut shadows)
                 } else {
                     [0.0; 3]
                 };
