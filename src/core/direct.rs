@@ -63,25 +63,22 @@ impl DirectLight {
     /// each point, lifted [`DirectLight::offset`] along its normal, to
     /// [`crate::core::light::Incident::shadow_end`] ([`crate::core::light`] defines each light).
     pub fn at_points(&self, points: &[([f64; 3], [f64; 3])], lights: &[Light]) -> [f64; 3] {
+        // Per point (sharing blockers), then summed in order: with one
+        // light or one point, the same sum term by term as one running
+        // total over every (point, light).
+        let mut cache = ShadowCache::new(lights.len());
         let mut d = [0.0; 3];
-        for (x, n) in points {
-            let x = add(*x, scale(*n, self.offset));
-            for light in lights {
-                if let Some(inc) = incident(light, x, *n, self.far) {
-                    if self.visible(x, inc.shadow_end) {
-                        for (dc, e) in d.iter_mut().zip(inc.irradiance) {
-                            *dc += e;
-                        }
-                    }
-                }
+        for &(x, n) in points {
+            let e = self.at_point_cached(x, n, lights, &mut cache);
+            for (dc, e) in d.iter_mut().zip(e) {
+                *dc += e;
             }
         }
         d.map(|v| v / points.len().max(1) as f64)
     }
 
     /// The irradiance at each of `points` (position, unit normal) from
-    /// `lights`, as [`DirectLight::at_points`] gives it for that point
-    /// alone (the same bits), with one [`ShadowCache`] across the points:
+    /// `lights` ([`DirectLight::at_point_cached`]), with one [`ShadowCache`] across the points:
     /// meant for points close together (a patch's sample points).
     pub fn at_points_each(
         &self,
@@ -95,9 +92,11 @@ impl DirectLight {
             .collect()
     }
 
-    /// The irradiance at the point `x` with unit normal `n` from `lights`,
-    /// as [`DirectLight::at_points`] gives it for that point alone (the
-    /// same bits). Per light, the triangle that blocked the last shadow ray
+    /// The irradiance at the point `x` with unit normal `n` from `lights`:
+    /// per light, its incident irradiance where the shadow ray (lifted
+    /// [`DirectLight::offset`] along `n`) meets no triangle, summed in
+    /// light order; the one definition [`DirectLight::at_points`] and
+    /// [`DirectLight::at_points_each`] use. Per light, the triangle that blocked the last shadow ray
     /// of `cache` is tried first, and only when it does not block this one
     /// is the BVH traversed ([`Bvh::hits_in_leaf`] says exactly when the
     /// traversal would have found a hit, so visibility is unchanged).
@@ -133,8 +132,6 @@ impl DirectLight {
                 }
             }
         }
-        // `at_points` over one point divides this sum by 1, which changes
-        // no bit.
         d
     }
 

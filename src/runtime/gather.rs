@@ -90,9 +90,9 @@ pub struct GatherStats {
 
 /// The BC1 palette tables of one channel (module doc).
 struct Bc1Table {
-    /// `[mode][e0 << bits | e1]` → 4 decoded values.
+    /// `[mode][e0 << bits | e1]` → 4 decoded values (5-bit red and blue,
+    /// 6-bit green endpoints; [`bc1_keys`] computes the index).
     values: Vec<[f32; 4]>,
-    bits: u32,
 }
 
 /// The sparse part as the gather reads it.
@@ -240,7 +240,7 @@ impl CompressedGather {
                         }
                     }
                 }
-                Bc1Table { values, bits }
+                Bc1Table { values }
             })
         });
         let (mut bc4_7, mut bc4_5) = (Vec::new(), Vec::new());
@@ -628,19 +628,11 @@ impl CompressedGather {
     fn bc1_column(&self, col: &[u8], b: &[[f32; 4]; 3], acc: &mut [[[f32; 16]; 3]]) {
         let tables = self.bc1.as_ref().expect("BC1 tables");
         for (k, a) in acc.iter_mut().enumerate() {
-            let blk = &col[8 * k..8 * k + 8];
-            let c0 = u16::from_le_bytes([blk[0], blk[1]]) as u32;
-            let c1 = u16::from_le_bytes([blk[2], blk[3]]) as u32;
-            let idx = u32::from_le_bytes([blk[4], blk[5], blk[6], blk[7]]);
-            let mode = usize::from(c0 > c1);
-            let keys = [
-                ((c0 >> 11) << 5) | (c1 >> 11),
-                (((c0 >> 5) & 63) << 6) | ((c1 >> 5) & 63),
-                ((c0 & 31) << 5) | (c1 & 31),
-            ];
+            let word = u64::from_le_bytes(col[8 * k..8 * k + 8].try_into().expect("8 bytes"));
+            let keys = bc1_keys(word);
+            let idx = keys[3];
             for ch in 0..3 {
-                let t = &tables[ch];
-                let pal = &t.values[(mode << (2 * t.bits)) + keys[ch] as usize];
+                let pal = &tables[ch].values[keys[ch] as usize];
                 for (lane, v) in a[ch].iter_mut().enumerate() {
                     let q = (idx >> (2 * lane)) & 3;
                     *v += pal[q as usize] * b[ch][lane & 3];
@@ -821,15 +813,9 @@ unsafe fn bc1_row_avx512<const BH: usize>(
         for (k, row) in a.iter_mut().enumerate() {
             let blk = col.as_ptr().add(8 * k);
             let word = (blk as *const u64).read_unaligned();
-            let c0w = (word & 0xffff) as u32;
-            let c1w = ((word >> 16) & 0xffff) as u32;
-            let idx = (word >> 32) as u32;
-            let mode = usize::from(c0w > c1w);
-            let kr = (mode << 10) + ((((c0w >> 11) << 5) | (c1w >> 11)) as usize);
-            let kg = (mode << 12) + (((((c0w >> 5) & 63) << 6) | ((c1w >> 5) & 63)) as usize);
-            let kb = (mode << 10) + ((((c0w & 31) << 5) | (c1w & 31)) as usize);
+            let [kr, kg, kb, idx] = bc1_keys(word).map(|x| x as usize);
             let iv = _mm512_and_epi32(
-                _mm512_srlv_epi32(_mm512_set1_epi32(idx as i32), shifts),
+                _mm512_srlv_epi32(_mm512_set1_epi32(idx as u32 as i32), shifts),
                 three,
             );
             let pr = _mm512_broadcast_f32x4(_mm_loadu_ps(v0.get_unchecked(kr).as_ptr()));
@@ -869,10 +855,10 @@ pub(crate) fn b0_groups(b0: [&[f32]; 3]) -> Vec<[[f32; 4]; 3]> {
 }
 
 /// The palette-table keys of one BC1 block (`word`: its 8 bytes, little
-/// endian): byte offsets of its red, green and blue palettes in the
-/// [`Bc1Table`]s (`[mode][e0 << bits | e1]`, 16 bytes per entry), and its
-/// 32 index bits.
-#[cfg(target_arch = "x86_64")]
+/// endian): the entries of its red, green and blue palettes in the
+/// [`Bc1Table`]s (`[mode][e0 << bits | e1]`), and its 32 index bits. The
+/// one key arithmetic of every BC1 path (the AVX2 path's vector copy of it
+/// is tested against the portable path).
 fn bc1_keys(word: u64) -> [u32; 4] {
     let c0 = (word & 0xffff) as u32;
     let c1 = ((word >> 16) & 0xffff) as u32;
@@ -880,7 +866,7 @@ fn bc1_keys(word: u64) -> [u32; 4] {
     let kr = (mode << 10) | ((c0 >> 11) << 5) | (c1 >> 11);
     let kg = (mode << 12) | (((c0 >> 5) & 63) << 6) | ((c1 >> 5) & 63);
     let kb = (mode << 10) | ((c0 & 31) << 5) | (c1 & 31);
-    [kr << 4, kg << 4, kb << 4, (word >> 32) as u32]
+    [kr, kg, kb, (word >> 32) as u32]
 }
 
 /// A BC1 row of tiles on AVX2 + FMA: the [`bc1_row_avx512`] arithmetic in
@@ -1001,7 +987,8 @@ unsafe fn bc1_row_avx2(
             } else {
                 for k in 0..bh {
                     let word = (col.add(8 * k) as *const u64).read_unaligned();
-                    *keys.get_unchecked_mut(k * stride + ci) = bc1_keys(word);
+                    let [r, g, b, idx] = bc1_keys(word);
+                    *keys.get_unchecked_mut(k * stride + ci) = [r << 4, g << 4, b << 4, idx];
                 }
             }
         }
