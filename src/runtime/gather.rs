@@ -48,6 +48,13 @@ pub struct ActiveColumns {
     pub group: Vec<bool>,
     /// Per tile column: some group in it is active.
     pub tile: Vec<bool>,
+    /// Per tile column: bit `l` set when its group `l` is active (a tile
+    /// has at most 64 groups: `MAX_TILE / 4`). The gather walks the set
+    /// bits instead of testing every group, whose pattern branch predictors
+    /// miss.
+    pub mask: Vec<u64>,
+    /// The active tile columns, ascending.
+    pub tiles: Vec<u32>,
     /// Groups active, for reports.
     pub active_groups: usize,
 }
@@ -60,16 +67,33 @@ impl ActiveColumns {
         let group: Vec<bool> = (0..groups)
             .map(|g| all || (4 * g..(4 * g + 4).min(n)).any(|j| b0.iter().any(|c| c[j] != 0.0)))
             .collect();
-        let per_tile = tile / 4;
-        let tile_flags = group
-            .chunks(per_tile.max(1))
-            .map(|c| c.iter().any(|&a| a))
+        let per_tile = (tile / 4).clamp(1, 64);
+        let mask: Vec<u64> = group
+            .chunks(per_tile)
+            .map(|c| {
+                c.iter()
+                    .enumerate()
+                    .fold(0, |m, (l, &a)| m | (u64::from(a) << l))
+            })
             .collect();
         ActiveColumns {
             active_groups: group.iter().filter(|&&a| a).count(),
             group,
-            tile: tile_flags,
+            tile: mask.iter().map(|&m| m != 0).collect(),
+            tiles: (0..mask.len() as u32)
+                .filter(|&t| mask[t as usize] != 0)
+                .collect(),
+            mask,
         }
+    }
+}
+
+/// The `k` lowest bits set (all 64 from `k = 64` on).
+fn low_bits(k: usize) -> u64 {
+    if k >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << k) - 1
     }
 }
 
@@ -86,6 +110,18 @@ pub struct GatherStats {
     /// Matrix entries (positions, each with its stored channels) decoded
     /// and multiplied.
     pub entries: u64,
+}
+
+impl GatherStats {
+    /// The stats of two parts of a product together.
+    fn add(self, o: GatherStats) -> GatherStats {
+        GatherStats {
+            bytes_read: self.bytes_read + o.bytes_read,
+            tiles_touched: self.tiles_touched + o.tiles_touched,
+            tiles_skipped: self.tiles_skipped + o.tiles_skipped,
+            entries: self.entries + o.entries,
+        }
+    }
 }
 
 /// The BC1 palette tables of one channel (module doc).
@@ -400,26 +436,19 @@ impl CompressedGather {
             active,
             out_ch,
         };
-        let results: Vec<(Vec<[f32; 4]>, GatherStats)> = (0..self.tiles_per_side)
-            .into_par_iter()
-            .map(|tr| self.tile_row(tr, &inputs))
-            .collect();
-        let mut stats = GatherStats {
-            bytes_read: self.bytes_index,
-            ..Default::default()
-        };
-        for (tr, (rows, s)) in results.into_iter().enumerate() {
-            stats.bytes_read += s.bytes_read;
-            stats.tiles_touched += s.tiles_touched;
-            stats.tiles_skipped += s.tiles_skipped;
-            stats.entries += s.entries;
-            for (r, v) in rows.iter().enumerate() {
-                let i = tr * tile + r;
-                if i < n {
-                    for c in 0..3 {
-                        h[c][i] = v[c.min(out_ch - 1)];
-                    }
-                }
+        // Rows of H, written in place by rows of tiles (one allocation per
+        // product: a spot light's gather is short enough for per-row
+        // allocations to show).
+        let mut out = vec![[0.0f32; 4]; self.image];
+        let mut stats = out
+            .par_chunks_mut(tile)
+            .enumerate()
+            .map(|(tr, rows)| SCRATCH.with_borrow_mut(|sc| self.tile_row(tr, &inputs, rows, sc)))
+            .reduce(GatherStats::default, GatherStats::add);
+        stats.bytes_read += self.bytes_index;
+        for (i, v) in out.iter().take(n).enumerate() {
+            for c in 0..3 {
+                h[c][i] = v[c.min(out_ch - 1)];
             }
         }
         stats
@@ -427,7 +456,13 @@ impl CompressedGather {
 
     /// One row of tiles: its rows of `H` (dense, then sparse; the fourth
     /// lane is padding).
-    fn tile_row(&self, tr: usize, inputs: &RowInputs) -> (Vec<[f32; 4]>, GatherStats) {
+    fn tile_row(
+        &self,
+        tr: usize,
+        inputs: &RowInputs,
+        rows: &mut [[f32; 4]],
+        scratch: &mut RowScratch,
+    ) -> GatherStats {
         let RowInputs {
             b0,
             b0p,
@@ -438,26 +473,40 @@ impl CompressedGather {
         let tile = self.tile;
         let h = tile.min(self.image - tr * tile);
         let mut stats = GatherStats::default();
-        let mut rows = vec![[0.0f32; 4]; h];
+        let RowScratch {
+            acc,
+            fast_cols,
+            keys,
+            slot_of,
+        } = scratch;
+        // This row's stored tiles by tile column (NO_SLOT where none), so
+        // that only the active tile columns are visited: testing every
+        // stored tile costs branches a predictor misses when few columns
+        // are lit. Reset to NO_SLOT before returning.
+        if slot_of.len() < self.tiles_per_side {
+            slot_of.resize(self.tiles_per_side, NO_SLOT);
+        }
+        let row_slots = self.row_start[tr] as usize..self.row_start[tr + 1] as usize;
+        for slot in row_slots.clone() {
+            slot_of[self.cols[slot] as usize] = slot as u32;
+        }
+        let stored = row_slots.len() as u64;
         match self.format {
-            DenseFormat::Bc1 | DenseFormat::Bc4 => {
+            DenseFormat::Bc1 | DenseFormat::Bc4 => 'dense: {
                 // Per block row and output channel: 16 lanes (row r, column
                 // c of the block at lane 4r + c).
                 let bh = h / 4;
-                let mut acc = vec![[[0.0f32; 16]; 3]; bh];
+                acc.clear();
+                acc.resize(bh, [[0.0f32; 16]; 3]);
                 // Full BC1 rows of tiles on AVX-512 run in one call that
                 // keeps the 24 accumulators in registers: the active block
                 // columns (byte offset, first column) are listed first.
                 let fast = self.simd && self.format == DenseFormat::Bc1;
-                let mut fast_cols: Vec<(u32, u32)> = Vec::with_capacity(if fast {
-                    (self.row_start[tr + 1] - self.row_start[tr]) as usize * tile / 4
-                } else {
-                    0
-                });
-                for slot in self.row_start[tr] as usize..self.row_start[tr + 1] as usize {
-                    let tc = self.cols[slot] as usize;
-                    if !active.tile[tc] {
-                        stats.tiles_skipped += 1;
+                fast_cols.clear();
+                for &tc in &active.tiles {
+                    let tc = tc as usize;
+                    let slot = slot_of[tc] as usize;
+                    if slot == NO_SLOT as usize {
                         continue;
                     }
                     stats.tiles_touched += 1;
@@ -470,16 +519,16 @@ impl CompressedGather {
                     };
                     let col_bytes = bh * block_bytes;
                     let base = self.offsets[slot] as usize;
-                    for bc in 0..bw {
-                        let g = tc * tile / 4 + bc;
-                        if !active.group[g] {
-                            continue;
-                        }
-                        let c0 = 4 * g;
+                    // The tile's active block columns, by their set bits.
+                    let mut bits = active.mask[tc] & low_bits(bw);
+                    stats.bytes_read += (bits.count_ones() as usize * col_bytes) as u64;
+                    stats.entries += (bits.count_ones() as usize * 16 * bh) as u64;
+                    while bits != 0 {
+                        let bc = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        let c0 = tc * tile + 4 * bc;
                         if fast {
                             fast_cols.push(((base + bc * col_bytes) as u32, c0 as u32));
-                            stats.bytes_read += col_bytes as u64;
-                            stats.entries += (16 * bh) as u64;
                             continue;
                         }
                         let mut b = [[0.0f32; 4]; 3];
@@ -489,12 +538,10 @@ impl CompressedGather {
                             }
                         }
                         let col = &self.dense[base + bc * col_bytes..base + (bc + 1) * col_bytes];
-                        stats.bytes_read += col_bytes as u64;
-                        stats.entries += (16 * bh) as u64;
                         if self.format == DenseFormat::Bc1 {
-                            self.bc1_column(col, &b, &mut acc);
+                            self.bc1_column(col, &b, acc);
                         } else {
-                            self.bc4_column(col, &b, out_ch, &mut acc);
+                            self.bc4_column(col, &b, out_ch, acc);
                         }
                     }
                 }
@@ -503,27 +550,31 @@ impl CompressedGather {
                     // SAFETY: `simd_kind` checked AVX2 and FMA.
                     unsafe {
                         let tables = self.bc1.as_ref().expect("BC1 tables");
-                        bc1_row_avx2(&self.dense, &fast_cols, b0p, tables, &mut acc);
+                        bc1_row_avx2(&self.dense, fast_cols, b0p, tables, keys, acc);
                     }
                 } else if fast {
                     // SAFETY: `simd` is set only when the CPU reports AVX-512F.
                     unsafe {
                         let tables = self.bc1.as_ref().expect("BC1 tables");
                         let args = (&self.dense[..], &fast_cols[..], b0, self.n, tables);
+                        let acc = &mut acc[..];
                         // The common full row of tiles (8 block rows) with
                         // its accumulators in registers; the last, shorter
                         // one through the same code with fewer rows.
                         match bh {
-                            8 => bc1_row_avx512::<8>(args, &mut acc),
-                            7 => bc1_row_avx512::<7>(args, &mut acc),
-                            6 => bc1_row_avx512::<6>(args, &mut acc),
-                            5 => bc1_row_avx512::<5>(args, &mut acc),
-                            4 => bc1_row_avx512::<4>(args, &mut acc),
-                            3 => bc1_row_avx512::<3>(args, &mut acc),
-                            2 => bc1_row_avx512::<2>(args, &mut acc),
-                            _ => bc1_row_avx512::<1>(args, &mut acc),
+                            8 => bc1_row_avx512::<8>(args, acc),
+                            7 => bc1_row_avx512::<7>(args, acc),
+                            6 => bc1_row_avx512::<6>(args, acc),
+                            5 => bc1_row_avx512::<5>(args, acc),
+                            4 => bc1_row_avx512::<4>(args, acc),
+                            3 => bc1_row_avx512::<3>(args, acc),
+                            2 => bc1_row_avx512::<2>(args, acc),
+                            _ => bc1_row_avx512::<1>(args, acc),
                         }
                     };
+                }
+                if stats.tiles_touched == 0 {
+                    break 'dense;
                 }
                 for (br, a) in acc.iter().enumerate() {
                     for r in 0..4 {
@@ -537,10 +588,10 @@ impl CompressedGather {
             _ => {
                 let mut buf = vec![0.0f32; tile * tile * self.channels];
                 let ch = self.channels;
-                for slot in self.row_start[tr] as usize..self.row_start[tr + 1] as usize {
-                    let tc = self.cols[slot] as usize;
-                    if !active.tile[tc] {
-                        stats.tiles_skipped += 1;
+                for &tc in &active.tiles {
+                    let tc = tc as usize;
+                    let slot = slot_of[tc] as usize;
+                    if slot == NO_SLOT as usize {
                         continue;
                     }
                     stats.tiles_touched += 1;
@@ -566,26 +617,36 @@ impl CompressedGather {
                 }
             }
         }
-        // The sparse part of these rows, tile by tile.
+        for slot in row_slots {
+            slot_of[self.cols[slot] as usize] = NO_SLOT;
+        }
+        stats.tiles_skipped = stored - stats.tiles_touched;
+        // The sparse part of these rows, tile by tile: its blocks by tile
+        // column in the same table, visited by active tile column.
         let sp = &self.sparse;
+        let row_blocks = sp.block_start[tr] as usize..sp.block_start[tr + 1] as usize;
+        for bi in row_blocks.clone() {
+            slot_of[sp.blocks[bi].0 as usize] = bi as u32;
+        }
         let entry_bytes = if sp.rgb9e5 {
             6
         } else {
             2 + 4 * sp.channels as u64
         };
         let gpt = tile / 4;
-        for bi in sp.block_start[tr] as usize..sp.block_start[tr + 1] as usize {
-            let tc = sp.blocks[bi].0 as usize;
-            if !active.tile[tc] {
+        for &tc in &active.tiles {
+            let tc = tc as usize;
+            let bi = slot_of[tc] as usize;
+            if bi == NO_SLOT as usize {
                 continue;
             }
             let starts = &sp.group_start[bi * (gpt + 1)..(bi + 1) * (gpt + 1)];
             stats.bytes_read += 4 * (gpt as u64 + 1);
-            for (gl, w) in starts.windows(2).enumerate() {
-                let (a, b) = (w[0] as usize, w[1] as usize);
-                if a == b || !active.group[tc * gpt + gl] {
-                    continue;
-                }
+            let mut bits = active.mask[tc];
+            while bits != 0 {
+                let gl = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let (a, b) = (starts[gl] as usize, starts[gl + 1] as usize);
                 stats.bytes_read += (b - a) as u64 * entry_bytes;
                 let jb = tc * tile;
                 if sp.rgb9e5 && out_ch == 3 {
@@ -596,7 +657,7 @@ impl CompressedGather {
                         &sp.packed[a..b],
                         &sp.exp_factor,
                         &b0x[jb..],
-                        &mut rows,
+                        rows,
                     );
                     continue;
                 }
@@ -621,7 +682,10 @@ impl CompressedGather {
                 }
             }
         }
-        (rows, stats)
+        for bi in row_blocks {
+            slot_of[sp.blocks[bi].0 as usize] = NO_SLOT;
+        }
+        stats
     }
 
     /// One BC1 block column (`bh` blocks) times `b`, into `acc`.
@@ -696,6 +760,28 @@ struct RowInputs<'a> {
     active: &'a ActiveColumns,
     /// Channels multiplied: 1 when the matrix and `B0` are both grey.
     out_ch: usize,
+}
+
+/// Buffers of one thread's rows of tiles, kept between rows and products
+/// (allocating them per row showed in a spot light's short gather).
+#[derive(Default)]
+struct RowScratch {
+    /// Per block row and output channel: 16 lanes.
+    acc: Vec<[[f32; 16]; 3]>,
+    /// The active block columns of the row (byte offset, first column).
+    fast_cols: Vec<(u32, u32)>,
+    /// [`bc1_row_avx2`]'s palette keys.
+    keys: Vec<u32>,
+    /// Per tile column: the row's stored tile (then its sparse block) there,
+    /// or [`NO_SLOT`]; all [`NO_SLOT`] between rows.
+    slot_of: Vec<u32>,
+}
+
+/// No stored tile in this tile column ([`RowScratch::slot_of`]).
+const NO_SLOT: u32 = u32::MAX;
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<RowScratch> = std::cell::RefCell::new(RowScratch::default());
 }
 
 /// The sparse part's common case (RGB9E5 values, three channels): one
@@ -896,6 +982,7 @@ unsafe fn bc1_row_avx2(
     cols: &[(u32, u32)],
     b0p: &[[[f32; 4]; 3]],
     tables: &[Bc1Table; 3],
+    keys: &mut Vec<u32>,
     acc: &mut [[[f32; 16]; 3]],
 ) {
     use std::arch::x86_64::*;
@@ -910,8 +997,13 @@ unsafe fn bc1_row_avx2(
     // keys[k * stride + ci]: block row k of the segment's column ci (sized
     // to the columns there are: few where most are skipped).
     let stride = AVX2_SEGMENT.min(cols.len());
-    let mut keys = vec![[0u32; 4]; bh * stride];
-    let kp = keys.as_mut_ptr() as *mut u32;
+    // Raw storage (the caller's buffer, kept between rows): every key is
+    // written by the key pass before the block rows read it, through `kp`
+    // only; the vector's length stays 0 and it never reads the memory
+    // itself.
+    keys.clear();
+    keys.reserve(4 * bh * stride);
+    let kp = keys.as_mut_ptr();
     // Per column of the segment: its group's entry in `b0p`.
     let mut groups = [0usize; AVX2_SEGMENT];
     // Vector key arithmetic (bc1_keys, eight blocks at once).
@@ -988,7 +1080,10 @@ unsafe fn bc1_row_avx2(
                 for k in 0..bh {
                     let word = (col.add(8 * k) as *const u64).read_unaligned();
                     let [r, g, b, idx] = bc1_keys(word);
-                    *keys.get_unchecked_mut(k * stride + ci) = [r << 4, g << 4, b << 4, idx];
+                    let key = kp.add(4 * (k * stride + ci));
+                    for (l, v) in [r << 4, g << 4, b << 4, idx].into_iter().enumerate() {
+                        *key.add(l) = v;
+                    }
                 }
             }
         }
