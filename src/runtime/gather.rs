@@ -53,8 +53,6 @@ pub struct ActiveColumns {
     /// bits instead of testing every group, whose pattern branch predictors
     /// miss.
     pub mask: Vec<u64>,
-    /// The active tile columns, ascending.
-    pub tiles: Vec<u32>,
     /// Groups active, for reports.
     pub active_groups: usize,
 }
@@ -80,9 +78,6 @@ impl ActiveColumns {
             active_groups: group.iter().filter(|&&a| a).count(),
             group,
             tile: mask.iter().map(|&m| m != 0).collect(),
-            tiles: (0..mask.len() as u32)
-                .filter(|&t| mask[t as usize] != 0)
-                .collect(),
             mask,
         }
     }
@@ -160,7 +155,6 @@ pub struct CompressedGather {
     n: usize,
     image: usize,
     tile: usize,
-    tiles_per_side: usize,
     format: DenseFormat,
     channels: usize,
     /// Stored tiles, each re-laid block column by block column (BC1, BC4)
@@ -370,7 +364,6 @@ impl CompressedGather {
             n: e.n,
             image: e.image_size,
             tile,
-            tiles_per_side: tps,
             format: e.format,
             channels: e.channels,
             dense,
@@ -477,20 +470,19 @@ impl CompressedGather {
             acc,
             fast_cols,
             keys,
-            slot_of,
+            visit,
         } = scratch;
-        // This row's stored tiles by tile column (NO_SLOT where none), so
-        // that only the active tile columns are visited: testing every
-        // stored tile costs branches a predictor misses when few columns
-        // are lit. Reset to NO_SLOT before returning.
-        if slot_of.len() < self.tiles_per_side {
-            slot_of.resize(self.tiles_per_side, NO_SLOT);
-        }
+        // This row's stored tiles in active tile columns, listed without
+        // branches (each slot written, the count advanced by its flag):
+        // testing every stored tile costs branches a predictor misses when
+        // few columns are lit.
         let row_slots = self.row_start[tr] as usize..self.row_start[tr + 1] as usize;
-        for slot in row_slots.clone() {
-            slot_of[self.cols[slot] as usize] = slot as u32;
-        }
         let stored = row_slots.len() as u64;
+        let touched = compact(
+            visit,
+            row_slots.map(|slot| (slot, self.cols[slot] as usize)),
+            active,
+        );
         match self.format {
             DenseFormat::Bc1 | DenseFormat::Bc4 => 'dense: {
                 // Per block row and output channel: 16 lanes (row r, column
@@ -503,13 +495,9 @@ impl CompressedGather {
                 // columns (byte offset, first column) are listed first.
                 let fast = self.simd && self.format == DenseFormat::Bc1;
                 fast_cols.clear();
-                for &tc in &active.tiles {
-                    let tc = tc as usize;
-                    let slot = slot_of[tc] as usize;
-                    if slot == NO_SLOT as usize {
-                        continue;
-                    }
-                    stats.tiles_touched += 1;
+                for &slot in &visit[..touched] {
+                    let slot = slot as usize;
+                    let tc = self.cols[slot] as usize;
                     let w = tile.min(self.image - tc * tile);
                     let bw = w / 4;
                     let block_bytes = if self.format == DenseFormat::Bc1 {
@@ -573,7 +561,7 @@ impl CompressedGather {
                         }
                     };
                 }
-                if stats.tiles_touched == 0 {
+                if touched == 0 {
                     break 'dense;
                 }
                 for (br, a) in acc.iter().enumerate() {
@@ -588,13 +576,9 @@ impl CompressedGather {
             _ => {
                 let mut buf = vec![0.0f32; tile * tile * self.channels];
                 let ch = self.channels;
-                for &tc in &active.tiles {
-                    let tc = tc as usize;
-                    let slot = slot_of[tc] as usize;
-                    if slot == NO_SLOT as usize {
-                        continue;
-                    }
-                    stats.tiles_touched += 1;
+                for &slot in &visit[..touched] {
+                    let slot = slot as usize;
+                    let tc = self.cols[slot] as usize;
                     let w = tile.min(self.image - tc * tile);
                     let len = self.format.tile_bytes(h, w, ch);
                     let start = self.offsets[slot] as usize;
@@ -617,29 +601,26 @@ impl CompressedGather {
                 }
             }
         }
-        for slot in row_slots {
-            slot_of[self.cols[slot] as usize] = NO_SLOT;
-        }
-        stats.tiles_skipped = stored - stats.tiles_touched;
-        // The sparse part of these rows, tile by tile: its blocks by tile
-        // column in the same table, visited by active tile column.
+        stats.tiles_touched = touched as u64;
+        stats.tiles_skipped = stored - touched as u64;
+        // The sparse part of these rows, tile by tile: its blocks in active
+        // tile columns, listed the same way.
         let sp = &self.sparse;
         let row_blocks = sp.block_start[tr] as usize..sp.block_start[tr + 1] as usize;
-        for bi in row_blocks.clone() {
-            slot_of[sp.blocks[bi].0 as usize] = bi as u32;
-        }
+        let listed = compact(
+            visit,
+            row_blocks.map(|bi| (bi, sp.blocks[bi].0 as usize)),
+            active,
+        );
         let entry_bytes = if sp.rgb9e5 {
             6
         } else {
             2 + 4 * sp.channels as u64
         };
         let gpt = tile / 4;
-        for &tc in &active.tiles {
-            let tc = tc as usize;
-            let bi = slot_of[tc] as usize;
-            if bi == NO_SLOT as usize {
-                continue;
-            }
+        for &bi in &visit[..listed] {
+            let bi = bi as usize;
+            let tc = sp.blocks[bi].0 as usize;
             let starts = &sp.group_start[bi * (gpt + 1)..(bi + 1) * (gpt + 1)];
             stats.bytes_read += 4 * (gpt as u64 + 1);
             let mut bits = active.mask[tc];
@@ -681,9 +662,6 @@ impl CompressedGather {
                     }
                 }
             }
-        }
-        for bi in row_blocks {
-            slot_of[sp.blocks[bi].0 as usize] = NO_SLOT;
         }
         stats
     }
@@ -772,13 +750,30 @@ struct RowScratch {
     fast_cols: Vec<(u32, u32)>,
     /// [`bc1_row_avx2`]'s palette keys.
     keys: Vec<u32>,
-    /// Per tile column: the row's stored tile (then its sparse block) there,
-    /// or [`NO_SLOT`]; all [`NO_SLOT`] between rows.
-    slot_of: Vec<u32>,
+    /// The row's stored tiles (then sparse blocks) to visit ([`compact`]).
+    visit: Vec<u32>,
 }
 
-/// No stored tile in this tile column ([`RowScratch::slot_of`]).
-const NO_SLOT: u32 = u32::MAX;
+/// Lists into `out` the items (index, tile column) whose tile column is
+/// active, in order, and returns how many: every item is written and the
+/// count advanced by its column's flag, so no branch depends on the
+/// pattern of active columns.
+fn compact(
+    out: &mut Vec<u32>,
+    items: impl ExactSizeIterator<Item = (usize, usize)>,
+    active: &ActiveColumns,
+) -> usize {
+    // Entries past the count are stale from earlier rows, never read.
+    if out.len() < items.len() + 1 {
+        out.resize(items.len() + 1, 0);
+    }
+    let mut k = 0;
+    for (i, tc) in items {
+        out[k] = i as u32;
+        k += usize::from(active.mask[tc] != 0);
+    }
+    k
+}
 
 thread_local! {
     static SCRATCH: std::cell::RefCell<RowScratch> = std::cell::RefCell::new(RowScratch::default());
