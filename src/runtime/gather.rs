@@ -428,6 +428,7 @@ impl CompressedGather {
             b0x: &b0x,
             active,
             out_ch,
+            sparse_avx2: self.simd && sparse_avx2_available(),
         };
         // Rows of H, written in place by rows of tiles (one allocation per
         // product: a spot light's gather is short enough for per-row
@@ -462,7 +463,10 @@ impl CompressedGather {
             b0x,
             active,
             out_ch,
+            sparse_avx2,
         } = *inputs;
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = sparse_avx2;
         let tile = self.tile;
         let h = tile.min(self.image - tr * tile);
         let mut stats = GatherStats::default();
@@ -633,13 +637,17 @@ impl CompressedGather {
                 if sp.rgb9e5 && out_ch == 3 {
                     // The common case, without per-entry branches (the same
                     // operations in the same order as the general loop).
-                    sparse_rgb9e5(
-                        &sp.pos[a..b],
-                        &sp.packed[a..b],
-                        &sp.exp_factor,
-                        &b0x[jb..],
-                        rows,
-                    );
+                    let (pos, packed) = (&sp.pos[a..b], &sp.packed[a..b]);
+                    #[cfg(target_arch = "x86_64")]
+                    if sparse_avx2 {
+                        // SAFETY: `sparse_avx2` is set only where the CPU
+                        // has AVX2.
+                        unsafe {
+                            sparse_rgb9e5_avx2(pos, packed, &sp.exp_factor, &b0x[jb..], rows);
+                        }
+                        continue;
+                    }
+                    sparse_rgb9e5(pos, packed, &sp.exp_factor, &b0x[jb..], rows);
                     continue;
                 }
                 for e in a..b {
@@ -738,6 +746,9 @@ struct RowInputs<'a> {
     active: &'a ActiveColumns,
     /// Channels multiplied: 1 when the matrix and `B0` are both grey.
     out_ch: usize,
+    /// [`sparse_rgb9e5_avx2`] runs (the vectorised path, on a CPU with
+    /// AVX2).
+    sparse_avx2: bool,
 }
 
 /// Buffers of one thread's rows of tiles, kept between rows and products
@@ -805,6 +816,50 @@ fn sparse_rgb9e5(
         for c in 0..4 {
             row[c] += m[c] * f[c] * b[c];
         }
+    }
+}
+
+/// [`sparse_rgb9e5`] with AVX2: the three mantissas extracted by one
+/// variable shift and converted together; the same operations per lane in
+/// the same order (mantissa times factor, times `B0`, added to the row),
+/// so the same bits. 18 instructions an entry where the portable loop,
+/// which the compiler vectorises only partly, takes 41.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn sparse_rgb9e5_avx2(
+    pos: &[u16],
+    packed: &[u32],
+    exp_factor: &[[f32; 4]; 32],
+    b0x: &[[f32; 4]],
+    rows: &mut [[f32; 4]],
+) {
+    use std::arch::x86_64::*;
+    let shifts = _mm_setr_epi32(0, 9, 18, 0);
+    let mask = _mm_setr_epi32(0x1ff, 0x1ff, 0x1ff, 0);
+    for (&p, &w) in pos.iter().zip(packed) {
+        let m = _mm_cvtepi32_ps(_mm_and_si128(
+            _mm_srlv_epi32(_mm_set1_epi32(w as i32), shifts),
+            mask,
+        ));
+        let f = _mm_loadu_ps(exp_factor[(w >> 27) as usize].as_ptr());
+        let b = _mm_loadu_ps(b0x[(p & 0xff) as usize].as_ptr());
+        let row = rows[(p >> 8) as usize].as_mut_ptr();
+        _mm_storeu_ps(
+            row,
+            _mm_add_ps(_mm_loadu_ps(row), _mm_mul_ps(_mm_mul_ps(m, f), b)),
+        );
+    }
+}
+
+/// Whether [`sparse_rgb9e5_avx2`] can run here.
+fn sparse_avx2_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 
@@ -1143,4 +1198,52 @@ pub fn dense_product(t: [&[f32]; 3], n: usize, b0: [&[f32]; 3]) -> [Vec<f64>; 3]
             })
             .collect()
     })
+}
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use super::*;
+    use crate::core::math::SplitMix64;
+
+    /// The AVX2 sparse loop gives the portable one's bits: random RGB9E5
+    /// words (every exponent), positions with repeated rows (the
+    /// accumulation order matters), random `B0`.
+    #[test]
+    fn the_avx2_sparse_loop_changes_no_bit() {
+        assert!(
+            sparse_avx2_available(),
+            "this test compares the AVX2 sparse loop with the portable one: it needs a CPU with AVX2"
+        );
+        let mut rng = SplitMix64::new(7);
+        let mut exp_factor = [[0.0f32; 4]; 32];
+        for (e, f) in exp_factor.iter_mut().enumerate() {
+            for (c, x) in f.iter_mut().take(3).enumerate() {
+                *x = 2f32.powi(e as i32 - 24) / (0.5 + c as f32);
+            }
+        }
+        let entries = 4_000;
+        let pos: Vec<u16> = (0..entries)
+            .map(|_| (((rng.next_u64() % 32) << 8) | (rng.next_u64() % 32)) as u16)
+            .collect();
+        let packed: Vec<u32> = (0..entries).map(|_| rng.next_u64() as u32).collect();
+        let b0x: Vec<[f32; 4]> = (0..32)
+            .map(|_| {
+                let mut v = [0.0f32; 4];
+                for x in v.iter_mut().take(3) {
+                    *x = (rng.next_u64() % 10_000) as f32 / 977.0;
+                }
+                v
+            })
+            .collect();
+        let mut a = vec![[0.25f32; 4]; 32];
+        let mut b = a.clone();
+        sparse_rgb9e5(&pos, &packed, &exp_factor, &b0x, &mut a);
+        // SAFETY: checked above that the CPU has AVX2.
+        unsafe { sparse_rgb9e5_avx2(&pos, &packed, &exp_factor, &b0x, &mut b) };
+        for (x, y) in a.iter().zip(&b) {
+            for c in 0..4 {
+                assert_eq!(x[c].to_bits(), y[c].to_bits(), "{x:?} vs {y:?}");
+            }
+        }
+    }
 }
