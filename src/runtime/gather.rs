@@ -40,6 +40,9 @@ use crate::bakefile::codec::rgb9e5;
 use crate::bakefile::codec::{DenseFormat, Encoded, SparseValues};
 use rayon::prelude::*;
 
+#[cfg(target_arch = "x86_64")]
+mod x86;
+
 /// Column groups of `B0` that take part in a product: group `g` covers
 /// columns `4g..4g + 4`.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -542,7 +545,7 @@ impl CompressedGather {
                     // SAFETY: `simd_kind` checked AVX2 and FMA.
                     unsafe {
                         let tables = self.bc1.as_ref().expect("BC1 tables");
-                        bc1_row_avx2(&self.dense, fast_cols, b0p, tables, keys, acc);
+                        x86::bc1_row_avx2(&self.dense, fast_cols, b0p, tables, keys, acc);
                     }
                 } else if fast {
                     // SAFETY: `simd` is set only when the CPU reports AVX-512F.
@@ -554,14 +557,14 @@ impl CompressedGather {
                         // its accumulators in registers; the last, shorter
                         // one through the same code with fewer rows.
                         match bh {
-                            8 => bc1_row_avx512::<8>(args, acc),
-                            7 => bc1_row_avx512::<7>(args, acc),
-                            6 => bc1_row_avx512::<6>(args, acc),
-                            5 => bc1_row_avx512::<5>(args, acc),
-                            4 => bc1_row_avx512::<4>(args, acc),
-                            3 => bc1_row_avx512::<3>(args, acc),
-                            2 => bc1_row_avx512::<2>(args, acc),
-                            _ => bc1_row_avx512::<1>(args, acc),
+                            8 => x86::bc1_row_avx512::<8>(args, acc),
+                            7 => x86::bc1_row_avx512::<7>(args, acc),
+                            6 => x86::bc1_row_avx512::<6>(args, acc),
+                            5 => x86::bc1_row_avx512::<5>(args, acc),
+                            4 => x86::bc1_row_avx512::<4>(args, acc),
+                            3 => x86::bc1_row_avx512::<3>(args, acc),
+                            2 => x86::bc1_row_avx512::<2>(args, acc),
+                            _ => x86::bc1_row_avx512::<1>(args, acc),
                         }
                     };
                 }
@@ -643,7 +646,7 @@ impl CompressedGather {
                         // SAFETY: `sparse_avx2` is set only where the CPU
                         // has AVX2.
                         unsafe {
-                            sparse_rgb9e5_avx2(pos, packed, &sp.exp_factor, &b0x[jb..], rows);
+                            x86::sparse_rgb9e5_avx2(pos, packed, &sp.exp_factor, &b0x[jb..], rows);
                         }
                         continue;
                     }
@@ -746,7 +749,7 @@ struct RowInputs<'a> {
     active: &'a ActiveColumns,
     /// Channels multiplied: 1 when the matrix and `B0` are both grey.
     out_ch: usize,
-    /// [`sparse_rgb9e5_avx2`] runs (the vectorised path, on a CPU with
+    /// [`x86::sparse_rgb9e5_avx2`] runs (the vectorised path, on a CPU with
     /// AVX2).
     sparse_avx2: bool,
 }
@@ -759,7 +762,7 @@ struct RowScratch {
     acc: Vec<[[f32; 16]; 3]>,
     /// The active block columns of the row (byte offset, first column).
     fast_cols: Vec<(u32, u32)>,
-    /// [`bc1_row_avx2`]'s palette keys.
+    /// [`x86::bc1_row_avx2`]'s palette keys.
     keys: Vec<u32>,
     /// The row's stored tiles (then sparse blocks) to visit ([`compact`]).
     visit: Vec<u32>,
@@ -819,40 +822,7 @@ fn sparse_rgb9e5(
     }
 }
 
-/// [`sparse_rgb9e5`] with AVX2: the three mantissas extracted by one
-/// variable shift and converted together; the same operations per lane in
-/// the same order (mantissa times factor, times `B0`, added to the row),
-/// so the same bits. 24 instructions an entry, two bounds checks
-/// included, where the portable loop, which the compiler vectorises only
-/// partly, takes 41 (counted in the disassembly).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn sparse_rgb9e5_avx2(
-    pos: &[u16],
-    packed: &[u32],
-    exp_factor: &[[f32; 4]; 32],
-    b0x: &[[f32; 4]],
-    rows: &mut [[f32; 4]],
-) {
-    use std::arch::x86_64::*;
-    let shifts = _mm_setr_epi32(0, 9, 18, 0);
-    let mask = _mm_setr_epi32(0x1ff, 0x1ff, 0x1ff, 0);
-    for (&p, &w) in pos.iter().zip(packed) {
-        let m = _mm_cvtepi32_ps(_mm_and_si128(
-            _mm_srlv_epi32(_mm_set1_epi32(w as i32), shifts),
-            mask,
-        ));
-        let f = _mm_loadu_ps(exp_factor[(w >> 27) as usize].as_ptr());
-        let b = _mm_loadu_ps(b0x[(p & 0xff) as usize].as_ptr());
-        let row = rows[(p >> 8) as usize].as_mut_ptr();
-        _mm_storeu_ps(
-            row,
-            _mm_add_ps(_mm_loadu_ps(row), _mm_mul_ps(_mm_mul_ps(m, f), b)),
-        );
-    }
-}
-
-/// Whether [`sparse_rgb9e5_avx2`] can run here.
+/// Whether [`x86::sparse_rgb9e5_avx2`] can run here.
 fn sparse_avx2_available() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
@@ -889,96 +859,8 @@ pub fn simd_kind() -> &'static str {
     }
 }
 
-/// The inputs of [`bc1_row_avx512`]: the dense data, the active block
-/// columns (byte offset of their blocks, first matrix column), `B0`, `n`
-/// and the palette tables.
-#[cfg(target_arch = "x86_64")]
-type RowArgs<'a> = (
-    &'a [u8],
-    &'a [(u32, u32)],
-    [&'a [f32]; 3],
-    usize,
-    &'a [Bc1Table; 3],
-);
-
-/// How many active block columns ahead [`bc1_row_avx512`] prefetches:
-/// enough lines in flight to cover a memory latency of ~100 ns at the
-/// ~10 ns one column takes to decode.
-#[cfg(target_arch = "x86_64")]
-const PREFETCH_AHEAD: usize = 16;
-
-/// A BC1 row of tiles of `BH` block rows on AVX-512: per block, the 16
-/// indices in one vector, and per channel one permute of the 4-entry
-/// palette and one fused multiply-add; each block column times its 4 values
-/// of `B0`, into `acc`, the `3 BH` accumulators held in registers for the
-/// whole row (24 of the 32 vector registers for a full row).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn bc1_row_avx512<const BH: usize>(
-    (dense, cols, b0, n, tables): RowArgs,
-    acc: &mut [[[f32; 16]; 3]],
-) {
-    use std::arch::x86_64::*;
-    let shifts = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
-    let three = _mm512_set1_epi32(3);
-    let mut a = [[_mm512_setzero_ps(); 3]; BH];
-    for (k, row) in a.iter_mut().enumerate() {
-        for (c, v) in row.iter_mut().enumerate() {
-            *v = _mm512_loadu_ps(acc[k][c].as_ptr());
-        }
-    }
-    let (v0, v1, v2) = (&tables[0].values, &tables[1].values, &tables[2].values);
-    for (ci, &(off, c0)) in cols.iter().enumerate() {
-        // Skipped columns leave the active ones scattered: each is one
-        // 64-byte line the hardware prefetcher does not predict, and the
-        // long body per column lets few loads overlap. Ask for the column
-        // PREFETCH_AHEAD places on now (a hint; no effect on results).
-        if let Some(&(next, _)) = cols.get(ci + PREFETCH_AHEAD) {
-            _mm_prefetch::<_MM_HINT_T0>(dense.as_ptr().add(next as usize) as *const i8);
-        }
-        let c0 = c0 as usize;
-        let b: [__m512; 3] = std::array::from_fn(|c| {
-            let mut q = [0.0f32; 4];
-            for (i, x) in q.iter_mut().enumerate() {
-                if c0 + i < n {
-                    *x = *b0[c].get_unchecked(c0 + i);
-                }
-            }
-            _mm512_broadcast_f32x4(_mm_loadu_ps(q.as_ptr()))
-        });
-        let col = dense.get_unchecked(off as usize..off as usize + 8 * BH);
-        for (k, row) in a.iter_mut().enumerate() {
-            let blk = col.as_ptr().add(8 * k);
-            let word = (blk as *const u64).read_unaligned();
-            let [kr, kg, kb, idx] = bc1_keys(word).map(|x| x as usize);
-            let iv = _mm512_and_epi32(
-                _mm512_srlv_epi32(_mm512_set1_epi32(idx as u32 as i32), shifts),
-                three,
-            );
-            let pr = _mm512_broadcast_f32x4(_mm_loadu_ps(v0.get_unchecked(kr).as_ptr()));
-            let pg = _mm512_broadcast_f32x4(_mm_loadu_ps(v1.get_unchecked(kg).as_ptr()));
-            let pb = _mm512_broadcast_f32x4(_mm_loadu_ps(v2.get_unchecked(kb).as_ptr()));
-            row[0] = _mm512_fmadd_ps(_mm512_permutexvar_ps(iv, pr), b[0], row[0]);
-            row[1] = _mm512_fmadd_ps(_mm512_permutexvar_ps(iv, pg), b[1], row[1]);
-            row[2] = _mm512_fmadd_ps(_mm512_permutexvar_ps(iv, pb), b[2], row[2]);
-        }
-    }
-    for (k, row) in a.iter().enumerate() {
-        for (c, v) in row.iter().enumerate() {
-            _mm512_storeu_ps(acc[k][c].as_mut_ptr(), *v);
-        }
-    }
-}
-
-/// How many active block columns [`bc1_row_avx2`] takes through all its
-/// block rows before moving on: 128 columns are 8 KiB of blocks, 16 KiB of
-/// decoded keys and 6 KiB of `B0`, which stay in L1 while the 8 block rows
-/// pass over them.
-#[cfg(target_arch = "x86_64")]
-const AVX2_SEGMENT: usize = 128;
-
 /// `B0` by group of 4 columns, the three channels of a group side by side
-/// and zero past `n`: what [`bc1_row_avx2`] broadcasts per block column,
+/// and zero past `n`: what [`x86::bc1_row_avx2`] broadcasts per block column,
 /// without bounds checks.
 pub(crate) fn b0_groups(b0: [&[f32]; 3]) -> Vec<[[f32; 4]; 3]> {
     let n = b0[0].len();
@@ -1004,184 +886,6 @@ fn bc1_keys(word: u64) -> [u32; 4] {
     let kg = (mode << 12) | (((c0 >> 5) & 63) << 6) | ((c1 >> 5) & 63);
     let kb = (mode << 10) | ((c0 & 31) << 5) | (c1 & 31);
     [kr, kg, kb, (word >> 32) as u32]
-}
-
-/// A BC1 row of tiles on AVX2 + FMA: the [`bc1_row_avx512`] arithmetic in
-/// 8-lane vectors, a block's 16 entries as two halves (its rows 0–1 and
-/// 2–3). With 16 vector registers the accumulators of a whole row of tiles
-/// do not fit, so the work goes by segments of [`AVX2_SEGMENT`] active
-/// block columns:
-/// - first the palette keys of every block of the segment are computed
-///   eight blocks (one block column) at a time in vector registers and
-///   stored by block row (the scalar key arithmetic was most of the
-///   instructions per block);
-/// - then per block row its 6 accumulators stay in registers while the
-///   segment's columns pass: per block one index broadcast, two shifts,
-///   three palette loads, six in-lane shuffles (`vpermilps`) and six fused
-///   multiply-adds, with `B0` from [`b0_groups`].
-///
-/// The segment's blocks stay in L1 between block rows. (Before segments,
-/// every block row passed over the whole row of tiles, whose blocks, `B0`
-/// and palette tables overflow L2 at 16k patches.) The key pass prefetches
-/// the column [`PREFETCH_AHEAD`] places on, as the AVX-512 path does. Per
-/// accumulator lane the columns are added in the same order as on AVX-512,
-/// whatever the segment length.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn bc1_row_avx2(
-    dense: &[u8],
-    cols: &[(u32, u32)],
-    b0p: &[[[f32; 4]; 3]],
-    tables: &[Bc1Table; 3],
-    keys: &mut Vec<u32>,
-    acc: &mut [[[f32; 16]; 3]],
-) {
-    use std::arch::x86_64::*;
-    let bh = acc.len();
-    let shifts_lo = _mm256_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14);
-    let shifts_hi = _mm256_setr_epi32(16, 18, 20, 22, 24, 26, 28, 30);
-    let (t0, t1, t2) = (
-        tables[0].values.as_ptr() as *const u8,
-        tables[1].values.as_ptr() as *const u8,
-        tables[2].values.as_ptr() as *const u8,
-    );
-    // keys[k * stride + ci]: block row k of the segment's column ci (sized
-    // to the columns there are: few where most are skipped).
-    let stride = AVX2_SEGMENT.min(cols.len());
-    // Raw storage (the caller's buffer, kept between rows): every key is
-    // written by the key pass before the block rows read it, through `kp`
-    // only; the vector's length stays 0 and it never reads the memory
-    // itself.
-    keys.clear();
-    keys.reserve(4 * bh * stride);
-    let kp = keys.as_mut_ptr();
-    // Per column of the segment: its group's entry in `b0p`.
-    let mut groups = [0usize; AVX2_SEGMENT];
-    // Vector key arithmetic (bc1_keys, eight blocks at once).
-    let even = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
-    let lo16 = _mm256_set1_epi32(0xffff);
-    let (m5, m6) = (_mm256_set1_epi32(31), _mm256_set1_epi32(63));
-    let (mode_rb, mode_g) = (_mm256_set1_epi32(1 << 10), _mm256_set1_epi32(1 << 12));
-    // No closures below: intrinsics inside a closure may not be inlined
-    // into this AVX2 function.
-    for (si, seg) in cols.chunks(AVX2_SEGMENT).enumerate() {
-        for (ci, &(off, c0)) in seg.iter().enumerate() {
-            groups[ci] = c0 as usize / 4;
-            // A hint (no effect on results).
-            if let Some(&(next, _)) = cols.get(si * AVX2_SEGMENT + ci + PREFETCH_AHEAD) {
-                _mm_prefetch::<_MM_HINT_T0>(dense.as_ptr().add(next as usize) as *const i8);
-            }
-            let col = dense.as_ptr().add(off as usize);
-            if bh == 8 {
-                // Blocks 0–3 and 4–7: endpoints in the low dword of each
-                // 8-byte block, indices in the high one.
-                let a =
-                    _mm256_permutevar8x32_epi32(_mm256_loadu_si256(col as *const __m256i), even);
-                let b = _mm256_permutevar8x32_epi32(
-                    _mm256_loadu_si256(col.add(32) as *const __m256i),
-                    even,
-                );
-                let ends = _mm256_permute2x128_si256::<0x20>(a, b);
-                let idx = _mm256_permute2x128_si256::<0x31>(a, b);
-                let c0 = _mm256_and_si256(ends, lo16);
-                let c1 = _mm256_srli_epi32::<16>(ends);
-                let mode = _mm256_cmpgt_epi32(c0, c1);
-                let kr = _mm256_or_si256(
-                    _mm256_or_si256(
-                        _mm256_slli_epi32::<5>(_mm256_srli_epi32::<11>(c0)),
-                        _mm256_srli_epi32::<11>(c1),
-                    ),
-                    _mm256_and_si256(mode, mode_rb),
-                );
-                let kg = _mm256_or_si256(
-                    _mm256_or_si256(
-                        _mm256_slli_epi32::<6>(_mm256_and_si256(_mm256_srli_epi32::<5>(c0), m6)),
-                        _mm256_and_si256(_mm256_srli_epi32::<5>(c1), m6),
-                    ),
-                    _mm256_and_si256(mode, mode_g),
-                );
-                let kb = _mm256_or_si256(
-                    _mm256_or_si256(
-                        _mm256_slli_epi32::<5>(_mm256_and_si256(c0, m5)),
-                        _mm256_and_si256(c1, m5),
-                    ),
-                    _mm256_and_si256(mode, mode_rb),
-                );
-                let (kr, kg, kb) = (
-                    _mm256_slli_epi32::<4>(kr),
-                    _mm256_slli_epi32::<4>(kg),
-                    _mm256_slli_epi32::<4>(kb),
-                );
-                // Transpose to one [kr, kg, kb, idx] per block.
-                let rg_lo = _mm256_unpacklo_epi32(kr, kg);
-                let rg_hi = _mm256_unpackhi_epi32(kr, kg);
-                let bi_lo = _mm256_unpacklo_epi32(kb, idx);
-                let bi_hi = _mm256_unpackhi_epi32(kb, idx);
-                let q0 = _mm256_unpacklo_epi64(rg_lo, bi_lo); // blocks 0, 4
-                let q1 = _mm256_unpackhi_epi64(rg_lo, bi_lo); // blocks 1, 5
-                let q2 = _mm256_unpacklo_epi64(rg_hi, bi_hi); // blocks 2, 6
-                let q3 = _mm256_unpackhi_epi64(rg_hi, bi_hi); // blocks 3, 7
-                for (k, q) in [(0, q0), (1, q1), (2, q2), (3, q3)] {
-                    let p0 = kp.add(4 * (k * stride + ci)) as *mut __m128i;
-                    let p4 = kp.add(4 * ((k + 4) * stride + ci)) as *mut __m128i;
-                    _mm_storeu_si128(p0, _mm256_castsi256_si128(q));
-                    _mm_storeu_si128(p4, _mm256_extracti128_si256::<1>(q));
-                }
-            } else {
-                for k in 0..bh {
-                    let word = (col.add(8 * k) as *const u64).read_unaligned();
-                    let [r, g, b, idx] = bc1_keys(word);
-                    let key = kp.add(4 * (k * stride + ci));
-                    for (l, v) in [r << 4, g << 4, b << 4, idx].into_iter().enumerate() {
-                        *key.add(l) = v;
-                    }
-                }
-            }
-        }
-        for (k, a) in acc.iter_mut().enumerate() {
-            let (mut lr, mut lg, mut lb) = (
-                _mm256_loadu_ps(a[0].as_ptr()),
-                _mm256_loadu_ps(a[1].as_ptr()),
-                _mm256_loadu_ps(a[2].as_ptr()),
-            );
-            let (mut hr, mut hg, mut hb) = (
-                _mm256_loadu_ps(a[0].as_ptr().add(8)),
-                _mm256_loadu_ps(a[1].as_ptr().add(8)),
-                _mm256_loadu_ps(a[2].as_ptr().add(8)),
-            );
-            let row = kp.add(4 * k * stride);
-            for (ci, &g) in groups[..seg.len()].iter().enumerate() {
-                let key = row.add(4 * ci);
-                let b = b0p.get_unchecked(g).as_ptr() as *const __m128;
-                let (br, bg, bb) = (
-                    _mm256_broadcast_ps(&*b),
-                    _mm256_broadcast_ps(&*b.add(1)),
-                    _mm256_broadcast_ps(&*b.add(2)),
-                );
-                let idx = _mm256_set1_epi32(*key.add(3) as i32);
-                // vpermilps picks within each 128-bit half by the low two
-                // bits of each lane, so the shifted indices need no mask
-                // and the palette (in both halves) costs one cheap shuffle.
-                let ilo = _mm256_srlv_epi32(idx, shifts_lo);
-                let ihi = _mm256_srlv_epi32(idx, shifts_hi);
-                let pr = _mm256_broadcast_ps(&*(t0.add(*key as usize) as *const __m128));
-                let pg = _mm256_broadcast_ps(&*(t1.add(*key.add(1) as usize) as *const __m128));
-                let pb = _mm256_broadcast_ps(&*(t2.add(*key.add(2) as usize) as *const __m128));
-                lr = _mm256_fmadd_ps(_mm256_permutevar_ps(pr, ilo), br, lr);
-                hr = _mm256_fmadd_ps(_mm256_permutevar_ps(pr, ihi), br, hr);
-                lg = _mm256_fmadd_ps(_mm256_permutevar_ps(pg, ilo), bg, lg);
-                hg = _mm256_fmadd_ps(_mm256_permutevar_ps(pg, ihi), bg, hg);
-                lb = _mm256_fmadd_ps(_mm256_permutevar_ps(pb, ilo), bb, lb);
-                hb = _mm256_fmadd_ps(_mm256_permutevar_ps(pb, ihi), bb, hb);
-            }
-            _mm256_storeu_ps(a[0].as_mut_ptr(), lr);
-            _mm256_storeu_ps(a[0].as_mut_ptr().add(8), hr);
-            _mm256_storeu_ps(a[1].as_mut_ptr(), lg);
-            _mm256_storeu_ps(a[1].as_mut_ptr().add(8), hg);
-            _mm256_storeu_ps(a[2].as_mut_ptr(), lb);
-            _mm256_storeu_ps(a[2].as_mut_ptr().add(8), hb);
-        }
-    }
 }
 
 /// `H = T · b` for a dense row-major f32 matrix per channel: the plain
@@ -1240,7 +944,7 @@ mod tests {
         let mut b = a.clone();
         sparse_rgb9e5(&pos, &packed, &exp_factor, &b0x, &mut a);
         // SAFETY: checked above that the CPU has AVX2.
-        unsafe { sparse_rgb9e5_avx2(&pos, &packed, &exp_factor, &b0x, &mut b) };
+        unsafe { x86::sparse_rgb9e5_avx2(&pos, &packed, &exp_factor, &b0x, &mut b) };
         for (x, y) in a.iter().zip(&b) {
             for c in 0..4 {
                 assert_eq!(x[c].to_bits(), y[c].to_bits(), "{x:?} vs {y:?}");
