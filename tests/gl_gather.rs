@@ -135,8 +135,8 @@ fn check(
         assert_eq!(h_all, h_gl, "case {case}: skipping changed H");
         println!(
             "{kind}, case {case}: {} of {} tile columns active; worst |GL - CPU| / bound = {worst:.2e} ({k} byte step(s) = {:.2} %)",
-            active.tile.iter().filter(|&&a| a).count(),
-            active.tile.len(),
+            active.mask.iter().filter(|&&m| m != 0).count(),
+            active.mask.len(),
             100.0 * step
         );
     }

@@ -235,7 +235,7 @@ impl GlGather {
             assert_eq!(c.len(), n, "B0 must have one value per patch");
             flat.extend_from_slice(c);
         }
-        let tile_active: Vec<u32> = active.tile.iter().map(|&a| u32::from(a)).collect();
+        let tile_active: Vec<u32> = active.mask.iter().map(|&m| u32::from(m != 0)).collect();
         let mut out = vec![0u8; 12 * n];
         // SAFETY: uploads, a dispatch and a read-back on the current
         // context, buffers sized to the data.

@@ -47,14 +47,11 @@ mod x86;
 /// columns `4g..4g + 4`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ActiveColumns {
-    /// Per group of 4 columns: some channel of `B0` is non-zero there.
-    pub group: Vec<bool>,
-    /// Per tile column: some group in it is active.
-    pub tile: Vec<bool>,
-    /// Per tile column: bit `l` set when its group `l` is active (a tile
-    /// has at most 64 groups: `MAX_TILE / 4`). The gather walks the set
-    /// bits instead of testing every group, whose pattern branch predictors
-    /// miss.
+    /// Per tile column: bit `l` set when its group `l` is active, that is
+    /// some channel of `B0` is non-zero in its 4 columns (a tile has at
+    /// most 64 groups: `MAX_TILE / 4`); a tile column is active when its
+    /// mask is not 0. The gather walks the set bits instead of testing
+    /// every group, whose pattern branch predictors miss.
     pub mask: Vec<u64>,
     /// Groups active, for reports.
     pub active_groups: usize,
@@ -79,8 +76,6 @@ impl ActiveColumns {
             .collect();
         ActiveColumns {
             active_groups: group.iter().filter(|&&a| a).count(),
-            group,
-            tile: mask.iter().map(|&m| m != 0).collect(),
             mask,
         }
     }
@@ -593,15 +588,20 @@ impl CompressedGather {
                     stats.bytes_read += len as u64;
                     stats.entries += (h * w) as u64;
                     let c0 = tc * tile;
+                    let cols_here = w.min(self.n.saturating_sub(c0));
                     for (r, row) in rows.iter_mut().enumerate() {
-                        for c in 0..w {
-                            let j = c0 + c;
-                            if j >= self.n || !active.group[j / 4] {
-                                continue;
-                            }
-                            let v = &buf[(r * w + c) * ch..(r * w + c + 1) * ch];
-                            for (oc, o) in row.iter_mut().enumerate().take(out_ch) {
-                                *o += v[oc.min(ch - 1)] * b0[oc][j];
+                        // Per row the active columns in ascending order,
+                        // as when nothing is skipped.
+                        let mut bits = active.mask[tc];
+                        while bits != 0 {
+                            let gl = bits.trailing_zeros() as usize;
+                            bits &= bits - 1;
+                            for c in 4 * gl..(4 * gl + 4).min(cols_here) {
+                                let j = c0 + c;
+                                let v = &buf[(r * w + c) * ch..(r * w + c + 1) * ch];
+                                for (oc, o) in row.iter_mut().enumerate().take(out_ch) {
+                                    *o += v[oc.min(ch - 1)] * b0[oc][j];
+                                }
                             }
                         }
                     }
@@ -777,9 +777,10 @@ fn compact(
     items: impl ExactSizeIterator<Item = (usize, usize)>,
     active: &ActiveColumns,
 ) -> usize {
-    // Entries past the count are stale from earlier rows, never read.
-    if out.len() < items.len() + 1 {
-        out.resize(items.len() + 1, 0);
+    // Entries past the count are stale from earlier rows, never read;
+    // the count never passes the item being written.
+    if out.len() < items.len() {
+        out.resize(items.len(), 0);
     }
     let mut k = 0;
     for (i, tc) in items {
