@@ -4,7 +4,7 @@
 // Prepended to shade.frag by the host.
 
 layout(std430, binding = 1) readonly buffer TriStart { uint tri_start[]; };    // triangles + 1
-layout(std430, binding = 2) readonly buffer Pieces { uint pieces[]; };         // 3 per piece: x | y << 16, z | flags << 16, patch
+layout(std430, binding = 2) readonly buffer Pieces { uint pieces[]; };         // 3 per piece: x | y << 16, z | flags << 16, patch; then 5 per cut: piece, n (3 float bits), d
 layout(std430, binding = 3) readonly buffer PatchVoxel { uint patch_voxel[]; }; // 2 per patch: x | y << 16, z
 layout(std430, binding = 4) readonly buffer PatchDirection { uint patch_direction[]; };
 layout(std430, binding = 5) readonly buffer Neighbours { uint neighbours[]; }; // 8 per patch, OFFSETS order
@@ -13,8 +13,12 @@ uniform vec3 map_origin;
 uniform float map_voxel_size;
 uniform uvec3 map_dims;
 uniform uint map_triangles;
+uniform uint map_pieces;
+uniform uint map_cuts;
 
 const uint NONE = 0xffffffffu;
+const uint PIECE_CUT = 2u;
+const int MAX_CUTS = 3; // src/core/patch.rs MAX_CUTS
 const int LOOKUP_PIECE = 0;
 const int LOOKUP_NEAREST = 1;
 const int LOOKUP_UNMAPPED = 2;
@@ -71,6 +75,26 @@ int surface_weights(uint t, vec3 x, out uvec4 patches, out vec4 weights) {
             float dd = dot(d, d);
             if (dd < best) { best = dd; piece = k; }
         }
+    }
+    // Of a piece cut by a wall (a chain of parts in one voxel), the part x
+    // lies in: along the chain while x is not on the positive side of a
+    // part's cut (the cuts follow the pieces in their buffer).
+    uint xy0 = pieces[3u * piece];
+    vec3 local = g - vec3(float(xy0 & 0xffffu), float(xy0 >> 16), float(pieces[3u * piece + 1u] & 0xffffu));
+    for (int step = 0; step < MAX_CUTS; step++) {
+        if (((pieces[3u * piece + 1u] >> 16) & PIECE_CUT) == 0u) break;
+        uint base = 3u * map_pieces;
+        uint lo = 0u;
+        uint hi = map_cuts;
+        while (lo < hi) {
+            uint mid = (lo + hi) / 2u;
+            if (pieces[base + 5u * mid] < piece) lo = mid + 1u; else hi = mid;
+        }
+        if (lo >= map_cuts || pieces[base + 5u * lo] != piece) break;
+        uint c = base + 5u * lo;
+        vec3 n = vec3(uintBitsToFloat(pieces[c + 1u]), uintBitsToFloat(pieces[c + 2u]), uintBitsToFloat(pieces[c + 3u]));
+        if (dot(n, local) - uintBitsToFloat(pieces[c + 4u]) >= 0.0) break;
+        piece += 1u;
     }
     uint p = pieces[3u * piece + 2u];
     if (p == NONE) return LOOKUP_UNMAPPED;

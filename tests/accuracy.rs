@@ -132,6 +132,84 @@ fn thin_walls_at_any_position_let_no_light_into_the_dark_room() {
     }
 }
 
+/// The user's version of the test above: one room whose every face is a
+/// single quad, split by a thin wall standing on its floor (and reaching
+/// its ceiling and side walls) at any position against the grid. The
+/// floor, ceiling and side quads pass under the wall, so their piece in the
+/// wall's voxel lies on both sides of it (the voxelizer's "Pieces cut by a
+/// wall"); before cuts, the dark room showed up to 30 % of the lit room's
+/// peak there.
+#[test]
+fn a_thin_wall_on_one_big_floor_lets_no_light_into_the_dark_room() {
+    let s = 0.25;
+    for &(w, offset) in &[(0.5, 0.3), (0.04, 0.5), (0.01, 0.02), (0.006, 0.97), (0.02, 0.8)] {
+        let x0 = 1.0 + offset * s;
+        let x1 = x0 + w * s;
+        let mut quads = room([0.0, 0.0, 0.0], [2.3, 1.0, 1.0], [0.7; 3]);
+        // The wall: its face at x0 looks at the lit room (−x), the one at
+        // x1 at the dark room (+x).
+        let (c, h) = ([0.0, 0.5, 0.5], 0.5);
+        quads.push(quad([x0, c[1], c[2]], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0], h, h, [0.7; 3]));
+        quads.push(quad([x1, c[1], c[2]], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], h, h, [0.7; 3]));
+        let obj = write_quads("acc-wall-on-floor", &quads);
+        let mut rt = bake_to_runtime(&obj, Resolution::VoxelSize(s));
+        let light = Light::Point {
+            position: [0.5, 0.6, 0.5],
+            intensity: [3.0; 3],
+        };
+        rt.frame(std::slice::from_ref(&light), &BTreeMap::new());
+        let (mut lit, mut dark) = (0, 0);
+        for (j, p) in rt.baked.patches.iter().enumerate() {
+            let in_dark = p.centre[0] as f64 > x1;
+            if in_dark {
+                assert!(
+                    (0..3).all(|c| rt.h()[c][j] == 0.0),
+                    "wall {w} voxels at {offset}: dark-room patch {j} at {:?} gets H",
+                    p.centre
+                );
+                dark += 1;
+            } else if rt.h()[0][j] > 0.0 {
+                lit += 1;
+            }
+        }
+        assert!(
+            lit > 0 && dark > 0,
+            "both rooms have patches, the lit one light"
+        );
+        // On pixels: from inside the dark room towards the wall and the
+        // floor along it.
+        let config = scene_config::SceneConfig {
+            emission: BTreeMap::new(),
+            camera: scene_config::Camera {
+                position: [2.25, 0.9, 0.5],
+                target: [x1 as f32, 0.0, 0.5],
+                up: [0.0, 1.0, 0.0],
+                fov_y_deg: 90.0,
+            },
+            lights: vec![light],
+            units: "m".into(),
+            description: String::new(),
+        };
+        let albedo = Albedo::new(&rt.scene);
+        for view in [View::Indirect, View::Final] {
+            let (img, stats) = render(&rt, &config, view, 64, 48, &albedo);
+            assert!(stats.hits > 0);
+            let max = img
+                .radiance
+                .iter()
+                .flat_map(|p| p.iter().copied())
+                .fold(0.0f32, f32::max);
+            assert_eq!(
+                max, 0.0,
+                "wall {w} voxels at {offset}: the dark room shows light ({view:?})"
+            );
+        }
+        // The case under test arose: some piece was cut by the wall.
+        let cut = rt.baked.surface_map.cuts.len();
+        assert!(cut > 0, "wall {w} voxels at {offset}: no piece was cut");
+    }
+}
+
 /// Writes `quads` with emission 1 on every material (Ke appended to the
 /// MTL) and bakes them at `voxel`.
 fn bake_emitting(tag: &str, quads: &[Quad], voxel: f64) -> bake::BakeOutput {

@@ -426,6 +426,9 @@ pub fn transfer_stages(
         seconds: t.elapsed().as_secs_f64(),
     });
     let facing = facing::check(&scene, &vox, &ff, config.two_sided)?;
+    for w in &facing.warnings {
+        progress(&format!("warning: {w}"));
+    }
     let patches: Vec<Patch> = ff.kept.iter().map(|&i| vox.patches[i].clone()).collect();
     let albedo: Vec<[f32; 3]> = patches.iter().map(|p| p.albedo.map(|a| a as f32)).collect();
 

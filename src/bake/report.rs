@@ -175,11 +175,12 @@ impl std::fmt::Display for BakeReport {
         writeln!(f, "patches: {} ({})", v.patches, per_dir.join(", "))?;
         writeln!(
             f,
-            "area: patches {:.6e} of scene {:.6e} ({:.2} %); {} staircase groups merged, {} split where a surface separates them, {} facing a surface within two voxels (kept); covered: {} pieces dropped, {} partly, area {:.3e} ({}); {} albedo components clamped",
+            "area: patches {:.6e} of scene {:.6e} ({:.2} %); {} staircase groups merged, {} pieces cut by a wall, {} split where a surface separates them, {} facing a surface within two voxels (kept); covered: {} pieces dropped, {} partly, area {:.3e} ({}); {} albedo components clamped",
             v.patch_area,
             v.scene_area,
             100.0 * v.patch_area / v.scene_area.max(f64::MIN_POSITIVE),
             v.merged_groups,
+            v.cut_pieces,
             v.split_groups,
             v.facing_back_groups,
             v.covered_pieces,
@@ -221,6 +222,18 @@ impl std::fmt::Display for BakeReport {
                 String::new()
             }
         )?;
+        if fc.reversed_patches > 0 {
+            writeln!(
+                f,
+                "  {} blind patches ({:.1} % of the area) see the fronts of other surfaces \
+                 from their back sides",
+                fc.reversed_patches,
+                100.0 * fc.reversed_area_share
+            )?;
+        }
+        for w in &fc.warnings {
+            writeln!(f, "warning: {w}")?;
+        }
         writeln!(f, "{}", self.transfer)?;
         let r = &self.reorder;
         writeln!(
@@ -298,6 +311,9 @@ impl std::fmt::Display for BakeReport {
             "  tiles skipped: {:.1} %",
             100.0 * self.codec.zero_tile_fraction
         )?;
+        for w in &self.facing.warnings {
+            writeln!(f, "  warning: {w}")?;
+        }
         match self.codec.h_error {
             Some(e) => writeln!(
                 f,

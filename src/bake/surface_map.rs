@@ -34,7 +34,7 @@ use super::error::BakeError;
 use super::pieces::{self, PieceGeo};
 use super::voxelize::{Cover, Voxelization};
 use crate::bakefile::surface::{
-    offset_slot, MapPiece, PatchSamples, SurfaceMap, NONE, OFFSETS, PIECE_SUBSTITUTE,
+    offset_slot, MapPiece, PatchSamples, SurfaceMap, NONE, OFFSETS, PIECE_CUT, PIECE_SUBSTITUTE,
     SAMPLES_PER_PATCH,
 };
 use crate::core::bvh::Bvh;
@@ -221,6 +221,7 @@ pub fn build(
         .collect();
     let mut tri_start = Vec::with_capacity(scene.triangles.len() + 1);
     let mut pieces = Vec::with_capacity(vox.pieces.len());
+    let mut cuts = Vec::new();
     let mut k = 0usize;
     for t in 0..scene.triangles.len() as u32 {
         tri_start.push(pieces.len() as u32);
@@ -237,9 +238,16 @@ pub fn build(
                 }
                 _ => stats.pieces_own += 1,
             }
+            let cut_flag = match vox.pieces[k].region.own_cut() {
+                Some(cut) => {
+                    cuts.push((pieces.len() as u32, cut));
+                    PIECE_CUT
+                }
+                None => 0,
+            };
             pieces.push(MapPiece {
                 voxel: vox.pieces[k].voxel.map(|c| c as u16),
-                flags,
+                flags: flags | cut_flag,
                 patch,
             });
             k += 1;
@@ -261,6 +269,7 @@ pub fn build(
             .map(|&i| vox.patches[i].direction as u8)
             .collect(),
         neighbours,
+        cuts,
     };
     map.check(n).map_err(|detail| BakeError::Mismatch {
         stage: "surface map",

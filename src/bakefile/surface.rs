@@ -38,9 +38,18 @@
 //! direction (`n × 4 × u16`) and its neighbours (`n × 8 × u32`).
 //! Patch indices are in the file's patch order, like the mesh map.
 //!
+//! Then, only in a map with cut pieces (the voxelizer's "Pieces cut by a
+//! wall"): their count `u32` and per cut the index of the part it belongs
+//! to (`u32`, a piece flagged [`PIECE_CUT`]) and the plane `n · p = d` in
+//! the voxel's coordinates (`4 × f32`). A cut piece is a chain of parts in
+//! one voxel, each but the last flagged: a point of the voxel lies in the
+//! first part whose plane has it on the positive side (`n · p ≥ d`), else
+//! in the last.
+//!
 //! `PSMP`: `n × SAMPLES_PER_PATCH` records of position `3 × f32` and unit
 //! normal `3 × f32`.
 
+use crate::core::patch::{Cut, Region, MAX_CUTS};
 use serde::Serialize;
 
 /// Sample points stored per patch.
@@ -76,6 +85,11 @@ pub fn offset_slot(du: i32, dv: i32) -> usize {
 /// or its patch removed).
 pub const PIECE_SUBSTITUTE: u16 = 1;
 
+/// Piece flag: the piece is the positive half of a piece cut by a wall
+/// (the voxelizer's "Pieces cut by a wall"); the next piece, in the same
+/// voxel, is the other half, and [`SurfaceMap::cuts`] holds the plane.
+pub const PIECE_CUT: u16 = 2;
+
 /// A triangle's piece in one voxel and the patch that lights it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize)]
 pub struct MapPiece {
@@ -102,6 +116,9 @@ pub struct SurfaceMap {
     pub patch_direction: Vec<u8>,
     /// Per patch: its neighbours in [`OFFSETS`] order, [`NONE`] when absent.
     pub neighbours: Vec<[u32; 8]>,
+    /// The cut pieces: (index of the positive half, the plane in its
+    /// voxel's coordinates), sorted by piece.
+    pub cuts: Vec<(u32, Cut)>,
 }
 
 /// The sample points of every patch (module doc): `SAMPLES_PER_PATCH`
@@ -139,6 +156,41 @@ impl SurfaceMap {
             patch_voxel: vec![[0; 3]; n],
             patch_direction: vec![0; n],
             neighbours: vec![[NONE; 8]; n],
+            cuts: Vec::new(),
+        }
+    }
+
+    /// The cut of piece `k` when it is flagged [`PIECE_CUT`].
+    pub fn cut(&self, k: usize) -> Option<Cut> {
+        if self.pieces[k].flags & PIECE_CUT == 0 {
+            return None;
+        }
+        self.cuts
+            .binary_search_by_key(&(k as u32), |c| c.0)
+            .ok()
+            .map(|j| self.cuts[j].1)
+    }
+
+    /// The region of piece `k` (empty for a whole piece): the negative
+    /// sides of the cuts of the parts before it in its chain, and the
+    /// positive side of its own cut.
+    pub fn region(&self, k: usize) -> Region {
+        let mut start = k;
+        while start > 0
+            && self.pieces[start - 1].flags & PIECE_CUT != 0
+            && self.pieces[start - 1].voxel == self.pieces[k].voxel
+        {
+            start -= 1;
+        }
+        let mut r = Region::default();
+        for j in start..k {
+            if let Some(next) = self.cut(j).and_then(|c| r.with(c, false)) {
+                r = next;
+            }
+        }
+        match self.cut(k).and_then(|c| r.with(c, true)) {
+            Some(next) => next,
+            None => r,
         }
     }
 
@@ -186,6 +238,17 @@ impl SurfaceMap {
         for nb in &self.neighbours {
             for x in nb {
                 out.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+        // The cuts, only when there are some (a file without them reads as
+        // before cuts existed).
+        if !self.cuts.is_empty() {
+            out.extend_from_slice(&(self.cuts.len() as u32).to_le_bytes());
+            for (k, c) in &self.cuts {
+                out.extend_from_slice(&k.to_le_bytes());
+                for v in c.n.iter().chain([&c.d]) {
+                    out.extend_from_slice(&v.to_le_bytes());
+                }
             }
         }
         out
@@ -265,6 +328,26 @@ impl SurfaceMap {
         let neighbours = (0..n)
             .map(|k| std::array::from_fn(|s| u32_at(nb, 8 * k + s)))
             .collect();
+        // Every length above was taken from `b`, so this does not overflow.
+        let before_cuts = 48 + 4 * (tris + 1) + 12 * m + 40 * n;
+        let mut cuts = Vec::new();
+        if b.len() > before_cuts {
+            let count = u32_at(take(4, "cut count")?, 0) as usize;
+            let c = take(
+                count.checked_mul(20).ok_or("cut count overflows")?,
+                "cuts",
+            )?;
+            let f32_at = |k: usize| f32::from_bits(u32_at(c, k));
+            for k in 0..count {
+                cuts.push((
+                    u32_at(c, 5 * k),
+                    Cut {
+                        n: [f32_at(5 * k + 1), f32_at(5 * k + 2), f32_at(5 * k + 3)],
+                        d: f32_at(5 * k + 4),
+                    },
+                ));
+            }
+        }
         if at != b.len() {
             return Err(format!("{} trailing bytes after byte {at}", b.len() - at));
         }
@@ -277,6 +360,7 @@ impl SurfaceMap {
             patch_voxel,
             patch_direction,
             neighbours,
+            cuts,
         };
         map.check(n)?;
         Ok(map)
@@ -318,13 +402,53 @@ impl SurfaceMap {
                         p.patch
                     ));
                 }
-                if p.flags & !PIECE_SUBSTITUTE != 0 {
+                if p.flags & !(PIECE_SUBSTITUTE | PIECE_CUT) != 0 {
                     return Err(format!("triangle {t}: unknown piece flags {:#x}", p.flags));
                 }
-                if k > 0 && voxel_key(ps[k - 1].voxel, self.dims) >= voxel_key(p.voxel, self.dims) {
+                if p.flags & PIECE_CUT != 0 && ps.get(k + 1).is_none_or(|q| q.voxel != p.voxel) {
+                    return Err(format!(
+                        "triangle {t}: cut piece in voxel {:?} without its next part",
+                        p.voxel
+                    ));
+                }
+                // Sorted by voxel; the parts of a cut piece share one.
+                let in_chain = k > 0 && ps[k - 1].flags & PIECE_CUT != 0;
+                if k > 0
+                    && (voxel_key(ps[k - 1].voxel, self.dims) > voxel_key(p.voxel, self.dims)
+                        || (ps[k - 1].voxel == p.voxel && !in_chain))
+                {
                     return Err(format!("triangle {t}: pieces not sorted by voxel"));
                 }
+                if k >= MAX_CUTS && ps[k - MAX_CUTS..=k].iter().all(|q| q.flags & PIECE_CUT != 0) {
+                    return Err(format!(
+                        "triangle {t}: a piece in voxel {:?} is cut more than {MAX_CUTS} times",
+                        p.voxel
+                    ));
+                }
             }
+        }
+        let flagged = self.pieces.iter().filter(|p| p.flags & PIECE_CUT != 0).count();
+        if flagged != self.cuts.len()
+            || self.cuts.windows(2).any(|w| w[0].0 >= w[1].0)
+            || self.cuts.iter().any(|(k, _)| {
+                self.pieces
+                    .get(*k as usize)
+                    .is_none_or(|p| p.flags & PIECE_CUT == 0)
+            })
+        {
+            return Err(format!(
+                "{} cuts for {flagged} cut pieces, unsorted or naming a piece not cut",
+                self.cuts.len()
+            ));
+        }
+        if let Some((k, c)) = self.cuts.iter().find(|(_, c)| {
+            let len = c.n.iter().map(|&x| x as f64 * x as f64).sum::<f64>().sqrt();
+            !(c.d.is_finite() && len > 0.5 && len < 2.0)
+        }) {
+            return Err(format!(
+                "piece {k}: cut plane n = {:?}, d = {} is not finite with a unit normal",
+                c.n, c.d
+            ));
         }
         if self.patch_direction.len() != n || self.patch_direction.iter().any(|&d| d > 5) {
             return Err(format!(

@@ -560,6 +560,17 @@ impl Bvh {
     }
 }
 
+/// What [`Bvh::surface_segment_blocker`] found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Blocker {
+    /// Nothing: the two points are connected.
+    Clear,
+    /// The segment leaves or reaches a point behind its surface.
+    Side,
+    /// This scene triangle crosses the segment.
+    Triangle(u32),
+}
+
 impl Bvh {
     /// Whether two points on surfaces, `a` and `b` (world coordinates,
     /// unit normals `na`, `nb`), lie on one connected stretch of surface
@@ -584,6 +595,23 @@ impl Bvh {
         own: f64,
         dir: u32,
     ) -> bool {
+        self.surface_segment_blocker(a, na, b, nb, lift, own, dir) == Blocker::Clear
+    }
+
+    /// What keeps [`Bvh::surface_segment_clear`] from holding: nothing,
+    /// the side test, or a triangle crossing the segment (its index in the
+    /// scene's triangle list).
+    #[allow(clippy::too_many_arguments)]
+    pub fn surface_segment_blocker(
+        &self,
+        a: [f64; 3],
+        na: [f64; 3],
+        b: [f64; 3],
+        nb: [f64; 3],
+        lift: f64,
+        own: f64,
+        dir: u32,
+    ) -> Blocker {
         let lifted = |p: [f64; 3], n: [f64; 3]| -> [f64; 3] {
             std::array::from_fn(|k| p[k] + lift * n[k] - self.shift[k])
         };
@@ -591,16 +619,18 @@ impl Bvh {
         let d = sub(e, o);
         let len = dot(d, d).sqrt();
         if !(len > 0.0) {
-            return true;
+            return Blocker::Clear;
         }
         if dot(d, na) < -SIDE_SLACK * len || dot(d, nb) > SIDE_SLACK * len {
-            return false;
+            return Blocker::Side;
         }
-        self.any_hit(o, d, |k, t| {
+        match self.any_hit(o, d, |k, t| {
             let (s, e) = (t * len, (1.0 - t) * len);
             self.tris[k as usize].dir == dir && (s <= own || e <= own)
-        })
-        .is_none()
+        }) {
+            None => Blocker::Clear,
+            Some(k) => Blocker::Triangle(self.order[k as usize]),
+        }
     }
 }
 

@@ -257,12 +257,146 @@ pub fn clip_to_unit_box(v: [[f64; 3]; 3]) -> Vec<[f64; 3]> {
     poly
 }
 
-/// The world-space polygon of a triangle's piece in voxel `voxel`, from
-/// the triangle's grid coordinates (`bake::voxelize::grid_coords`).
-pub fn piece_polygon(grid: &Grid, coords: &[f64; 9], voxel: [u32; 3]) -> Vec<[f64; 3]> {
+/// A plane cutting a triangle's piece in two where another surface (a
+/// thin wall standing on a big floor triangle) crosses it inside its voxel
+/// (the voxelizer's module doc, "Pieces cut by a wall"), in the voxel's
+/// own coordinates (minimum corner 0, edge 1): `n · p = d`. f32, as the
+/// bake file stores it, so the bake and the run time split at the same
+/// place.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Cut {
+    pub n: [f32; 3],
+    pub d: f32,
+}
+
+impl Cut {
+    /// Signed distance-like value of a voxel-local point: `≥ 0` on the
+    /// positive side.
+    pub fn side(&self, p: [f64; 3]) -> f64 {
+        (0..3).map(|q| self.n[q] as f64 * p[q]).sum::<f64>() - self.d as f64
+    }
+}
+
+/// The most cuts one piece takes (a wall thinner than a voxel has two
+/// faces in it; a corner of two such walls, four planes, is cut by three).
+pub const MAX_CUTS: usize = 3;
+
+/// The part of a piece that a chain of cuts leaves (the voxelizer's
+/// "Pieces cut by a wall"): on the given side of each cut in turn. A piece
+/// cut `m` times becomes `m + 1` parts: part `i < m` is on the negative
+/// side of cuts `0..i` and the positive side of cut `i`; the last part is
+/// on the negative side of every cut. Empty for a whole piece.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Region {
+    sides: [(Cut, bool); MAX_CUTS],
+    len: u8,
+}
+
+impl Region {
+    /// The cuts and sides (`true`: `n · p ≥ d`).
+    pub fn sides(&self) -> &[(Cut, bool)] {
+        &self.sides[..self.len as usize]
+    }
+
+    /// This region, also on `positive`'s side of `cut` (`None` past
+    /// [`MAX_CUTS`]).
+    pub fn with(&self, cut: Cut, positive: bool) -> Option<Region> {
+        let mut r = *self;
+        *r.sides.get_mut(r.len as usize)? = (cut, positive);
+        r.len += 1;
+        Some(r)
+    }
+
+    /// Whether a voxel-local point lies in the region (on the cut planes
+    /// themselves: the positive side).
+    pub fn contains(&self, p: [f64; 3]) -> bool {
+        self.sides()
+            .iter()
+            .all(|&(c, positive)| (c.side(p) >= 0.0) == positive)
+    }
+
+    /// The cut of a part that is followed by others in its chain: its last
+    /// cut, when on the positive side.
+    pub fn own_cut(&self) -> Option<Cut> {
+        self.sides().last().filter(|s| s.1).map(|s| s.0)
+    }
+
+    /// The region shrunk by `inset` (voxel units) away from each of its
+    /// cut planes.
+    pub fn inset(&self, inset: f32) -> Region {
+        let mut r = *self;
+        for (c, positive) in &mut r.sides[..self.len as usize] {
+            c.d += if *positive { inset } else { -inset };
+        }
+        r
+    }
+
+    /// Negative sides taken: the part's position in its chain.
+    pub fn position(&self) -> usize {
+        self.sides().iter().filter(|s| !s.1).count()
+    }
+}
+
+/// Sutherland–Hodgman against one side of a [`Cut`].
+pub fn clip_side(src: &[[f64; 3]], cut: Cut, positive: bool) -> Vec<[f64; 3]> {
+    let m = src.len();
+    let mut out = Vec::with_capacity(m + 1);
+    let dist = |p: &[f64; 3]| {
+        let s = cut.side(*p);
+        if positive {
+            s
+        } else {
+            -s
+        }
+    };
+    for i in 0..m {
+        let p = (i + m - 1) % m;
+        let (dc, dp) = (dist(&src[i]), dist(&src[p]));
+        let (cin, pin) = (dc >= 0.0, dp >= 0.0);
+        if cin != pin {
+            let t = dp / (dp - dc);
+            out.push(std::array::from_fn(|j| src[p][j] + t * (src[i][j] - src[p][j])));
+        }
+        if cin {
+            out.push(src[i]);
+        }
+    }
+    out
+}
+
+/// A voxel-local polygon clipped to a [`Region`].
+pub fn clip_region(poly: Vec<[f64; 3]>, region: &Region) -> Vec<[f64; 3]> {
+    region
+        .sides()
+        .iter()
+        .fold(poly, |p, &(c, positive)| {
+            if p.is_empty() {
+                p
+            } else {
+                clip_side(&p, c, positive)
+            }
+        })
+}
+
+/// The part of a triangle's piece in voxel `voxel` (voxel-local
+/// coordinates, as [`clip_to_unit_box`]): the triangle inside the unit box,
+/// and for a cut piece inside its region.
+pub fn piece_polygon_local(coords: &[f64; 9], voxel: [u32; 3], region: &Region) -> Vec<[f64; 3]> {
     let local: [[f64; 3]; 3] =
         std::array::from_fn(|i| std::array::from_fn(|q| coords[3 * i + q] - voxel[q] as f64));
-    clip_to_unit_box(local)
+    clip_region(clip_to_unit_box(local), region)
+}
+
+/// The world-space polygon of a triangle's piece in voxel `voxel`, from
+/// the triangle's grid coordinates (`bake::voxelize::grid_coords`); for a
+/// cut piece, its region.
+pub fn piece_polygon(
+    grid: &Grid,
+    coords: &[f64; 9],
+    voxel: [u32; 3],
+    region: &Region,
+) -> Vec<[f64; 3]> {
+    piece_polygon_local(coords, voxel, region)
         .into_iter()
         .map(|p| std::array::from_fn(|q| grid.origin[q] + grid.size * (voxel[q] as f64 + p[q])))
         .collect()

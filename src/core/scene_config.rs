@@ -29,7 +29,9 @@ pub struct SceneConfig {
     pub lights: Vec<Light>,
     /// The length unit of the scene's coordinates, e.g. `"m"` or `"mm"`.
     pub units: String,
-    /// A human-readable description of the scene and its lights.
+    /// A human-readable description of the scene and its lights; optional
+    /// (empty when absent).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
     pub description: String,
     /// Run-time scale of each emissive material's `Ke`, by material name
     /// (0 switches it off); materials not listed keep scale 1.

@@ -1,7 +1,8 @@
 //! The surface map on the GPU (`glsl/surface.glsl`, evaluated per
 //! fragment by the shading pass): the bake file's map
 //! ([`crate::bakefile::surface::SurfaceMap`]) in five storage buffers,
-//! packed to 32-bit words (voxel coordinates are 16-bit). Its CPU
+//! packed to 32-bit words (voxel coordinates are 16-bit; the cuts follow
+//! the pieces in their buffer). Its CPU
 //! reference is [`crate::runtime::surface::weights`].
 
 use super::{bytes_of, storage_buffer, GlError};
@@ -15,12 +16,19 @@ pub struct GlSurfaceMap {
     pub voxel_size: f32,
     pub dims: [u32; 3],
     pub triangles: u32,
+    /// Pieces, and cuts after them in the pieces buffer.
+    pub pieces: u32,
+    pub cuts: u32,
 }
 
 impl GlSurfaceMap {
     pub fn new(gl: &glow::Context, map: &SurfaceMap) -> Result<GlSurfaceMap, GlError> {
         let pack = |a: u16, b: u16| a as u32 | (b as u32) << 16;
-        let pieces: Vec<u32> = map
+        // The pieces, then the cuts (5 words each: the positive half's
+        // index, the plane's n and d as float bits) in the same buffer: a
+        // fragment shader may have as few as 8 storage blocks, and the
+        // shading pass uses all 8.
+        let mut pieces: Vec<u32> = map
             .pieces
             .iter()
             .flat_map(|p| {
@@ -31,6 +39,14 @@ impl GlSurfaceMap {
                 ]
             })
             .collect();
+        for (k, c) in &map.cuts {
+            pieces.extend([*k, c.n[0].to_bits(), c.n[1].to_bits(), c.n[2].to_bits()]);
+            pieces.push(c.d.to_bits());
+        }
+        if pieces.is_empty() {
+            // A storage buffer may not be empty.
+            pieces.push(0);
+        }
         let voxels: Vec<u32> = map
             .patch_voxel
             .iter()
@@ -51,6 +67,8 @@ impl GlSurfaceMap {
             voxel_size: map.voxel_size as f32,
             dims: map.dims,
             triangles: map.triangles() as u32,
+            pieces: map.pieces.len() as u32,
+            cuts: map.cuts.len() as u32,
         })
     }
 
@@ -69,6 +87,8 @@ impl GlSurfaceMap {
             let d = self.dims;
             gl.uniform_3_u32(loc("map_dims").as_ref(), d[0], d[1], d[2]);
             gl.uniform_1_u32(loc("map_triangles").as_ref(), self.triangles);
+            gl.uniform_1_u32(loc("map_pieces").as_ref(), self.pieces);
+            gl.uniform_1_u32(loc("map_cuts").as_ref(), self.cuts);
         }
     }
 

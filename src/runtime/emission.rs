@@ -50,11 +50,17 @@ impl Emission {
                 grid.to_grid(v)[k % 3]
             });
             let nt = scene.triangle_normal(t);
-            for piece in map.pieces_of(t) {
+            let first = map.tri_start[t] as usize;
+            for (k, piece) in map.pieces_of(t).iter().enumerate() {
                 if piece.patch == NONE || piece.flags & PIECE_SUBSTITUTE != 0 {
                     continue;
                 }
-                let poly = piece_polygon(&grid, &coords, piece.voxel.map(u32::from));
+                let poly = piece_polygon(
+                    &grid,
+                    &coords,
+                    piece.voxel.map(u32::from),
+                    &map.region(first + k),
+                );
                 let mut a2 = [0.0; 3];
                 for i in 1..poly.len().saturating_sub(1) {
                     let c = cross(sub(poly[i], poly[0]), sub(poly[i + 1], poly[0]));

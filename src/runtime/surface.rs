@@ -5,7 +5,8 @@
 //! For a point `x` on triangle `t`: the voxel `v` holding `x` (the grid
 //! coordinates' floor, with a neighbour tried when rounding puts `x` just
 //! outside the triangle's pieces), the triangle's piece there (binary
-//! search), its patch `P`; then, in `P`'s plane, `x`'s offsets `(f_u, f_v)`
+//! search; of a piece cut by a wall, the part on `x`'s side of the cuts),
+//! its patch `P`; then, in `P`'s plane, `x`'s offsets `(f_u, f_v)`
 //! from the centre of `P`'s voxel along the two grid axes other than `P`'s
 //! facing axis, each in `[−½, ½]`. The four patches of the quadrant are `P`
 //! and its lattice neighbours at `(sign f_u, 0)`, `(0, sign f_v)` and
@@ -52,17 +53,28 @@ pub fn weights(map: &SurfaceMap, t: usize, x: [f32; 3]) -> (Weights, Lookup) {
             .then(|| voxel_key(v.map(|c| c as u16), map.dims))
     };
     let find = |key: u64| {
-        pieces
-            .binary_search_by_key(&key, |p| voxel_key(p.voxel, map.dims))
-            .ok()
+        let lo = pieces.partition_point(|p| voxel_key(p.voxel, map.dims) < key);
+        (lo < pieces.len() && voxel_key(pieces[lo].voxel, map.dims) == key).then_some(lo)
+    };
+    // Of a cut piece (a chain of parts), the part `x` lies in: along the
+    // chain while `x` is not on the positive side of a part's cut.
+    let first = map.tri_start[t] as usize;
+    let pick = |mut i: usize| -> usize {
+        let local: [f64; 3] = std::array::from_fn(|k| g[k] - pieces[i].voxel[k] as f64);
+        while i + 1 < pieces.len() {
+            match map.cut(first + i) {
+                Some(cut) if cut.side(local) < 0.0 => i += 1,
+                _ => break,
+            }
+        }
+        i
     };
     let (piece, how) = match key_of(v).and_then(find) {
-        Some(i) => (pieces[i], Lookup::Piece),
+        Some(i) => (pieces[pick(i)], Lookup::Piece),
         None => {
             // The piece whose voxel centre is nearest to x.
-            let best = pieces
-                .iter()
-                .min_by(|a, b| {
+            let best = (0..pieces.len())
+                .min_by(|&a, &b| {
                     let d = |p: &crate::bakefile::surface::MapPiece| {
                         (0..3)
                             .map(|k| {
@@ -71,11 +83,10 @@ pub fn weights(map: &SurfaceMap, t: usize, x: [f32; 3]) -> (Weights, Lookup) {
                             })
                             .sum::<f64>()
                     };
-                    d(a).total_cmp(&d(b))
+                    d(&pieces[a]).total_cmp(&d(&pieces[b]))
                 })
-                .copied()
                 .expect("pieces is not empty");
-            (best, Lookup::NearestPiece)
+            (pieces[pick(best)], Lookup::NearestPiece)
         }
     };
     if piece.patch == NONE {

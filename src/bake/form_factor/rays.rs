@@ -42,10 +42,10 @@
 
 use super::{FormFactorOptions, FormFactorStats, FormFactors, ROW_SUM_TOL};
 use crate::bake::error::BakeError;
-use crate::bake::pieces::{self, PieceGeo, PieceLookup};
+use crate::bake::pieces::{self, PieceGeo, PieceLookup, CUT_INSET};
 use crate::bake::voxelize::{Cover, Voxelization};
 use crate::core::bvh::Bvh;
-use crate::core::math::{add, dot, normalize, scale, sub, tangent_basis, SplitMix64};
+use crate::core::math::{add, dot, norm, normalize, scale, sub, tangent_basis, SplitMix64};
 use crate::core::scene::Scene;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -317,9 +317,13 @@ impl Tracer<'_> {
         }
         let tri = rs.bvh.order[leaf as usize] as usize;
         let y = add(add(o, scale(d, tp * rs.far)), rs.shift);
+        // The part of a cut piece is the one on the side the ray came from
+        // when it lands within CUT_INSET voxels of the cut: a ray can slip
+        // through the f32 rounding at the foot of the wall that cut it.
+        let back = scale(d, -CUT_INSET as f64 * self.vox.grid.size / norm(d).max(1e-300));
         match rs
             .lookup
-            .find(self.vox, tri, y)
+            .find_from(self.vox, tri, y, back)
             .and_then(|p| self.vox.pieces[p].patch)
         {
             Some(patch) => Hit::Owned { patch, y },
