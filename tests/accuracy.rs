@@ -142,15 +142,35 @@ fn thin_walls_at_any_position_let_no_light_into_the_dark_room() {
 #[test]
 fn a_thin_wall_on_one_big_floor_lets_no_light_into_the_dark_room() {
     let s = 0.25;
-    for &(w, offset) in &[(0.5, 0.3), (0.04, 0.5), (0.01, 0.02), (0.006, 0.97), (0.02, 0.8)] {
+    for &(w, offset) in &[
+        (0.5, 0.3),
+        (0.04, 0.5),
+        (0.01, 0.02),
+        (0.006, 0.97),
+        (0.02, 0.8),
+    ] {
         let x0 = 1.0 + offset * s;
         let x1 = x0 + w * s;
         let mut quads = room([0.0, 0.0, 0.0], [2.3, 1.0, 1.0], [0.7; 3]);
         // The wall: its face at x0 looks at the lit room (−x), the one at
         // x1 at the dark room (+x).
         let (c, h) = ([0.0, 0.5, 0.5], 0.5);
-        quads.push(quad([x0, c[1], c[2]], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0], h, h, [0.7; 3]));
-        quads.push(quad([x1, c[1], c[2]], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], h, h, [0.7; 3]));
+        quads.push(quad(
+            [x0, c[1], c[2]],
+            [0.0, 0.0, 1.0],
+            [0.0, 1.0, 0.0],
+            h,
+            h,
+            [0.7; 3],
+        ));
+        quads.push(quad(
+            [x1, c[1], c[2]],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            h,
+            h,
+            [0.7; 3],
+        ));
         let obj = write_quads("acc-wall-on-floor", &quads);
         let mut rt = bake_to_runtime(&obj, Resolution::VoxelSize(s));
         let light = Light::Point {

@@ -410,6 +410,83 @@ fn gl_a_light_outside_a_closed_room_changes_nothing_inside() {
     r.delete(gl);
 }
 
+/// The surface map's cut pieces on the GPU (glsl/surface.glsl): a room of
+/// single quads split by a thin wall standing on its floor, so the floor,
+/// ceiling and side quads are cut where the wall crosses them (the
+/// voxelizer's "Pieces cut by a wall"). From the dark room the GPU shows
+/// nothing; from the lit room, looking along the wall's foot, the GPU picks
+/// the same parts as the CPU (the weights view shows the patches' colours).
+#[test]
+fn gl_a_thin_wall_on_one_big_floor_keeps_the_dark_room_dark() {
+    let ctx = context();
+    let gl = &ctx.gl;
+    let (x0, x1) = (1.13, 1.14);
+    let mut quads = box_inward([2.3, 1.0, 1.0], 0.7);
+    quads.push(quad(
+        [x0, 0.5, 0.5],
+        [0.0, 0.0, 1.0],
+        [0.0, 1.0, 0.0],
+        0.5,
+        0.5,
+        [0.7; 3],
+    ));
+    quads.push(quad(
+        [x1, 0.5, 0.5],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        0.5,
+        0.5,
+        [0.7; 3],
+    ));
+    let obj = write_quads("gl-wall-on-floor", &quads);
+    let mut rt = bake(&obj, Resolution::VoxelSize(0.25));
+    assert!(!rt.baked.surface_map.cuts.is_empty(), "no piece was cut");
+    let light = Light::Point {
+        position: [0.5, 0.6, 0.5],
+        intensity: [3.0; 3],
+    };
+    let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).unwrap();
+    r.frame(gl, std::slice::from_ref(&light), &BTreeMap::new())
+        .unwrap();
+    rt.frame(std::slice::from_ref(&light), &BTreeMap::new());
+    let camera = |position: [f32; 3], target: [f32; 3]| scene_config::Camera {
+        position,
+        target,
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: 90.0,
+    };
+    let dark = camera([2.25, 0.9, 0.5], [x1 as f32, 0.0, 0.5]);
+    let img = r
+        .render(gl, &dark, View::Indirect, (64, 48), &BTreeMap::new())
+        .unwrap();
+    assert!(
+        img.radiance.iter().all(|p| p.iter().all(|&v| v == 0.0)),
+        "the GPU shows light in the dark room"
+    );
+    let lit = camera([0.1, 0.9, 0.5], [x0 as f32, 0.0, 0.5]);
+    let config = SceneConfig {
+        emission: BTreeMap::new(),
+        camera: lit.clone(),
+        lights: vec![light],
+        units: "m".into(),
+        description: String::new(),
+    };
+    let albedo = Albedo::new(&rt.scene);
+    for view in [View::Weights, View::Indirect] {
+        let gpu = r
+            .render(gl, &lit, view, (96, 72), &BTreeMap::new())
+            .unwrap();
+        let (cpu, _) = render(&rt, &config, view, 96, 72, &albedo);
+        let (e, coverage) = image_diff(&gpu, &cpu);
+        eprintln!("{view:?}: relative RMS {e:.4}, coverage differs on {coverage:.4}");
+        // The bounds of gl_images_match_the_cpu_renderer_in_every_view: a
+        // point given the wrong part would show another patch's colour.
+        assert!(coverage < 0.01, "{view:?}: coverage differs on {coverage}");
+        assert!(e < 0.02, "{view:?}: relative RMS {e}");
+    }
+    r.delete(gl);
+}
+
 #[test]
 fn a_broken_shader_names_its_file_and_gives_the_drivers_log() {
     let ctx = context();

@@ -14,6 +14,7 @@ pub mod budget;
 pub mod cache;
 pub mod config;
 pub mod cover;
+pub mod cut;
 pub mod encode;
 pub mod error;
 pub mod export;

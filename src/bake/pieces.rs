@@ -145,8 +145,7 @@ impl PieceLookup {
                 i -= 1;
             }
             let p = vox.pieces[i].voxel;
-            let local: [f64; 3] =
-                std::array::from_fn(|k| g[k] + back[k] / grid.size - p[k] as f64);
+            let local: [f64; 3] = std::array::from_fn(|k| g[k] + back[k] / grid.size - p[k] as f64);
             while i + 1 < b {
                 match vox.pieces[i].region.own_cut() {
                     Some(cut) if cut.side(local) < 0.0 => i += 1,

@@ -85,9 +85,10 @@ pub fn offset_slot(du: i32, dv: i32) -> usize {
 /// or its patch removed).
 pub const PIECE_SUBSTITUTE: u16 = 1;
 
-/// Piece flag: the piece is the positive half of a piece cut by a wall
-/// (the voxelizer's "Pieces cut by a wall"); the next piece, in the same
-/// voxel, is the other half, and [`SurfaceMap::cuts`] holds the plane.
+/// Piece flag: the piece is a part of a piece cut by a wall (the
+/// voxelizer's "Pieces cut by a wall") with a cut of its own, in
+/// [`SurfaceMap::cuts`]; the next piece, in the same voxel, is the next
+/// part of the chain.
 pub const PIECE_CUT: u16 = 2;
 
 /// A triangle's piece in one voxel and the patch that lights it.
@@ -333,10 +334,7 @@ impl SurfaceMap {
         let mut cuts = Vec::new();
         if b.len() > before_cuts {
             let count = u32_at(take(4, "cut count")?, 0) as usize;
-            let c = take(
-                count.checked_mul(20).ok_or("cut count overflows")?,
-                "cuts",
-            )?;
+            let c = take(count.checked_mul(20).ok_or("cut count overflows")?, "cuts")?;
             let f32_at = |k: usize| f32::from_bits(u32_at(c, k));
             for k in 0..count {
                 cuts.push((
@@ -419,7 +417,11 @@ impl SurfaceMap {
                 {
                     return Err(format!("triangle {t}: pieces not sorted by voxel"));
                 }
-                if k >= MAX_CUTS && ps[k - MAX_CUTS..=k].iter().all(|q| q.flags & PIECE_CUT != 0) {
+                if k >= MAX_CUTS
+                    && ps[k - MAX_CUTS..=k]
+                        .iter()
+                        .all(|q| q.flags & PIECE_CUT != 0)
+                {
                     return Err(format!(
                         "triangle {t}: a piece in voxel {:?} is cut more than {MAX_CUTS} times",
                         p.voxel
@@ -427,7 +429,11 @@ impl SurfaceMap {
                 }
             }
         }
-        let flagged = self.pieces.iter().filter(|p| p.flags & PIECE_CUT != 0).count();
+        let flagged = self
+            .pieces
+            .iter()
+            .filter(|p| p.flags & PIECE_CUT != 0)
+            .count();
         if flagged != self.cuts.len()
             || self.cuts.windows(2).any(|w| w[0].0 >= w[1].0)
             || self.cuts.iter().any(|(k, _)| {
@@ -586,5 +592,110 @@ impl PatchSamples {
             out.normal.extend_from_slice(&self.normal[r]);
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One triangle whose piece in voxel (1, 0, 0) is cut twice: x ≥ 0.3
+    /// (part 0, patch 0), else x ≤ 0.6 (part 1, patch 1), else part 2
+    /// (patch 2); one whole piece in voxel (2, 0, 0) (patch 1).
+    fn chain() -> SurfaceMap {
+        let mut m = SurfaceMap::without_geometry(3);
+        m.dims = [4, 1, 1];
+        m.tri_start = vec![0, 4];
+        let piece = |x: u16, flags: u16, patch: u32| MapPiece {
+            voxel: [x, 0, 0],
+            flags,
+            patch,
+        };
+        m.pieces = vec![
+            piece(1, PIECE_CUT, 0),
+            piece(1, PIECE_CUT, 1),
+            piece(1, 0, 2),
+            piece(2, 0, 1),
+        ];
+        m.cuts = vec![
+            (
+                0,
+                Cut {
+                    n: [-1.0, 0.0, 0.0],
+                    d: -0.3,
+                },
+            ),
+            (
+                1,
+                Cut {
+                    n: [-1.0, 0.0, 0.0],
+                    d: -0.6,
+                },
+            ),
+        ];
+        m.patch_voxel = vec![[1, 0, 0]; 3];
+        m
+    }
+
+    #[test]
+    fn a_chain_of_cuts_round_trips_and_names_its_regions() {
+        let m = chain();
+        m.check(3).unwrap();
+        let b = m.to_bytes();
+        assert_eq!(SurfaceMap::from_bytes(&b, 3).unwrap(), m);
+        // Part 1: the negative side of cut 0 and the positive of cut 1.
+        let r = m.region(1);
+        assert_eq!(r.sides().len(), 2);
+        assert!(r.contains([0.5, 0.5, 0.5]));
+        assert!(!r.contains([0.2, 0.5, 0.5]) && !r.contains([0.7, 0.5, 0.5]));
+        assert!(m.region(2).contains([0.9, 0.5, 0.5]));
+        assert!(!m.region(2).contains([0.5, 0.5, 0.5]));
+        assert!(m.region(3).sides().is_empty());
+        // A map without cuts has no tail: its bytes are the format before
+        // cuts existed, and read back.
+        let mut plain = chain();
+        plain.pieces = vec![plain.pieces[2], plain.pieces[3]];
+        plain.tri_start = vec![0, 2];
+        plain.cuts.clear();
+        let b = plain.to_bytes();
+        assert_eq!(b.len(), 48 + 8 + 2 * 12 + 3 * 40);
+        assert_eq!(SurfaceMap::from_bytes(&b, 3).unwrap(), plain);
+    }
+
+    #[test]
+    fn broken_chains_are_refused_with_what_is_wrong() {
+        let mut m = chain();
+        m.pieces[2].flags = PIECE_CUT;
+        m.pieces.pop();
+        m.tri_start = vec![0, 3];
+        m.cuts.push((
+            2,
+            Cut {
+                n: [1.0, 0.0, 0.0],
+                d: 0.5,
+            },
+        ));
+        let e = m.check(3).unwrap_err();
+        assert!(e.contains("without its next part"), "{e}");
+
+        let mut m = chain();
+        m.cuts.pop();
+        let e = m.check(3).unwrap_err();
+        assert!(e.contains("1 cuts for 2 cut pieces"), "{e}");
+
+        let mut m = chain();
+        m.cuts[1].1.d = f32::NAN;
+        let e = m.check(3).unwrap_err();
+        assert!(e.contains("piece 1: cut plane"), "{e}");
+
+        let mut m = chain();
+        m.pieces[1].flags = 0;
+        let e = m.check(3).unwrap_err();
+        assert!(e.contains("not sorted") || e.contains("cut pieces"), "{e}");
+
+        // Truncated in the cut table.
+        let b = chain().to_bytes();
+        let e = SurfaceMap::from_bytes(&b[..b.len() - 3], 3).unwrap_err();
+        assert!(e.contains("cuts"), "{e}");
     }
 }

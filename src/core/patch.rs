@@ -355,7 +355,9 @@ pub fn clip_side(src: &[[f64; 3]], cut: Cut, positive: bool) -> Vec<[f64; 3]> {
         let (cin, pin) = (dc >= 0.0, dp >= 0.0);
         if cin != pin {
             let t = dp / (dp - dc);
-            out.push(std::array::from_fn(|j| src[p][j] + t * (src[i][j] - src[p][j])));
+            out.push(std::array::from_fn(|j| {
+                src[p][j] + t * (src[i][j] - src[p][j])
+            }));
         }
         if cin {
             out.push(src[i]);
@@ -366,16 +368,13 @@ pub fn clip_side(src: &[[f64; 3]], cut: Cut, positive: bool) -> Vec<[f64; 3]> {
 
 /// A voxel-local polygon clipped to a [`Region`].
 pub fn clip_region(poly: Vec<[f64; 3]>, region: &Region) -> Vec<[f64; 3]> {
-    region
-        .sides()
-        .iter()
-        .fold(poly, |p, &(c, positive)| {
-            if p.is_empty() {
-                p
-            } else {
-                clip_side(&p, c, positive)
-            }
-        })
+    region.sides().iter().fold(poly, |p, &(c, positive)| {
+        if p.is_empty() {
+            p
+        } else {
+            clip_side(&p, c, positive)
+        }
+    })
 }
 
 /// The part of a triangle's piece in voxel `voxel` (voxel-local

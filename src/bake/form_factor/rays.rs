@@ -320,7 +320,10 @@ impl Tracer<'_> {
         // The part of a cut piece is the one on the side the ray came from
         // when it lands within CUT_INSET voxels of the cut: a ray can slip
         // through the f32 rounding at the foot of the wall that cut it.
-        let back = scale(d, -CUT_INSET as f64 * self.vox.grid.size / norm(d).max(1e-300));
+        let back = scale(
+            d,
+            -CUT_INSET as f64 * self.vox.grid.size / norm(d).max(1e-300),
+        );
         match rs
             .lookup
             .find_from(self.vox, tri, y, back)
