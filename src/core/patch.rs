@@ -219,12 +219,19 @@ impl Patch {
     }
 }
 
-/// Sutherland–Hodgman against `x_k ≥ 0` or `x_k ≤ 1` (the voxelization
-/// kernel's `clip_axis`, in f64).
-fn clip_axis(src: &[[f64; 3]], k: usize, keep_high: bool) -> Vec<[f64; 3]> {
+/// Sutherland–Hodgman against `x_k ≥ −slack` or `x_k ≤ 1 + slack` (the
+/// voxelization kernel's `clip_axis`, in f64, at slack 0).
+fn clip_axis(src: &[[f64; 3]], k: usize, keep_high: bool, slack: f64) -> Vec<[f64; 3]> {
     let m = src.len();
     let mut out = Vec::with_capacity(m + 1);
-    let dist = |p: &[f64; 3]| if keep_high { 1.0 - p[k] } else { p[k] };
+    let bound = if keep_high { 1.0 + slack } else { -slack };
+    let dist = |p: &[f64; 3]| {
+        if keep_high {
+            bound - p[k]
+        } else {
+            p[k] - bound
+        }
+    };
     for i in 0..m {
         let p = (i + m - 1) % m;
         let (dc, dp) = (dist(&src[i]), dist(&src[p]));
@@ -232,7 +239,7 @@ fn clip_axis(src: &[[f64; 3]], k: usize, keep_high: bool) -> Vec<[f64; 3]> {
         if cin != pin {
             let t = dp / (dp - dc);
             let mut q: [f64; 3] = std::array::from_fn(|j| src[p][j] + t * (src[i][j] - src[p][j]));
-            q[k] = if keep_high { 1.0 } else { 0.0 };
+            q[k] = bound;
             out.push(q);
         }
         if cin {
@@ -246,16 +253,31 @@ fn clip_axis(src: &[[f64; 3]], k: usize, keep_high: bool) -> Vec<[f64; 3]> {
 /// corner, in voxel units) inside the unit box: a convex polygon, empty
 /// when they do not overlap.
 pub fn clip_to_unit_box(v: [[f64; 3]; 3]) -> Vec<[f64; 3]> {
+    clip_to_box(v, 0.0)
+}
+
+/// [`clip_to_unit_box`] with the box grown by `slack` (voxel units) on
+/// every side.
+fn clip_to_box(v: [[f64; 3]; 3], slack: f64) -> Vec<[f64; 3]> {
     let mut poly = v.to_vec();
     for k in 0..3 {
         if poly.is_empty() {
             break;
         }
-        poly = clip_axis(&poly, k, false);
-        poly = clip_axis(&poly, k, true);
+        poly = clip_axis(&poly, k, false, slack);
+        poly = clip_axis(&poly, k, true, slack);
     }
     poly
 }
+
+/// How far (voxel units) [`piece_polygon_local`] reaches past a voxel's
+/// faces for a piece the exact clip leaves without area: the OpenCL
+/// voxelizer places a surface lying in a voxel face by f32 grid
+/// coordinates (their rounding is ~1e-4 voxels at a 1,000-voxel grid), and
+/// where that rounding puts it in the other voxel than the host's f64, the
+/// exact clip finds nothing (a box's side at x = 0.3 at voxel 0.1: every
+/// patch of it had no surface to cast rays from, and the bake saw nothing).
+pub const FACE_SLACK: f64 = 1e-3;
 
 /// A plane cutting a triangle's piece in two where another surface (a
 /// thin wall standing on a big floor triangle) crosses it inside its voxel
@@ -383,7 +405,26 @@ pub fn clip_region(poly: Vec<[f64; 3]>, region: &Region) -> Vec<[f64; 3]> {
 pub fn piece_polygon_local(coords: &[f64; 9], voxel: [u32; 3], region: &Region) -> Vec<[f64; 3]> {
     let local: [[f64; 3]; 3] =
         std::array::from_fn(|i| std::array::from_fn(|q| coords[3 * i + q] - voxel[q] as f64));
-    clip_region(clip_to_unit_box(local), region)
+    let mut poly = clip_to_unit_box(local);
+    if !has_area(&poly) {
+        // A surface in the voxel's face that the kernel placed on this
+        // side ([`FACE_SLACK`]); its polygon then lies in that face.
+        poly = clip_to_box(local, FACE_SLACK);
+        for p in &mut poly {
+            for c in p.iter_mut() {
+                *c = c.clamp(0.0, 1.0);
+            }
+        }
+    }
+    clip_region(poly, region)
+}
+
+/// Whether a planar polygon has any area.
+fn has_area(poly: &[[f64; 3]]) -> bool {
+    (1..poly.len().saturating_sub(1)).any(|i| {
+        let c = cross(sub(poly[i], poly[0]), sub(poly[i + 1], poly[0]));
+        c.iter().any(|&x| x != 0.0)
+    })
 }
 
 /// The world-space polygon of a triangle's piece in voxel `voxel`, from
