@@ -441,3 +441,37 @@ pub fn piece_polygon(
         .map(|p| std::array::from_fn(|q| grid.origin[q] + grid.size * (voxel[q] as f64 + p[q])))
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A face lying in a voxel face, placed by the OpenCL kernel's f32 on
+    /// the side where the host's f64 puts it 4e-16 outside: the exact clip
+    /// finds nothing, the piece's polygon is the face inside the voxel.
+    #[test]
+    fn a_face_in_a_voxel_face_keeps_its_polygon_on_either_side() {
+        let x = 3.0 - 4e-16;
+        let coords = [x, 0.0, 0.0, x, 2.0, 0.0, x, 0.0, 2.0];
+        let whole = Region::default();
+        assert!(clip_to_unit_box(std::array::from_fn(|i| {
+            std::array::from_fn(|q| coords[3 * i + q] - [3.0, 0.0, 0.0][q])
+        }))
+        .is_empty());
+        let poly = piece_polygon_local(&coords, [3, 0, 0], &whole);
+        assert!(has_area(&poly), "{poly:?}");
+        assert!(poly
+            .iter()
+            .all(|p| p[0] == 0.0 && p.iter().all(|&c| (0.0..=1.0).contains(&c))));
+        // The same face in the other voxel, and any piece with area, are
+        // the exact clip.
+        let other = piece_polygon_local(&coords, [2, 0, 0], &whole);
+        assert_eq!(
+            other,
+            clip_to_unit_box(std::array::from_fn(|i| {
+                std::array::from_fn(|q| coords[3 * i + q] - [2.0, 0.0, 0.0][q])
+            }))
+        );
+        assert!(has_area(&other));
+    }
+}
