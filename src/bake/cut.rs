@@ -10,7 +10,7 @@
 //! to one of its corners (pulled 2 % inwards), lifted as in the component
 //! test, crosses a surface transverse to it, the piece is cut by that
 //! surface's plane ([`Cut`]). The cut stands when both sides have area
-//! above [`MIN_PIECE_AREA`] and no pair of their points (the
+//! above the voxelizer's smallest piece and no pair of their points (the
 //! [`CUT_POINTS`] stratified points of one and the nearest of the other's)
 //! is connected — a column standing on the floor inside the voxel cuts
 //! nothing, the floor joins around it. The side that another wall still
@@ -25,10 +25,10 @@
 //! coordinates, stored f32 ([`Cut`]), so the bake and the run time split
 //! at the same place.
 
-use crate::bake::voxelize::{stratified_points, Piece, MIN_PIECE_AREA};
 use crate::core::bvh::{Blocker, Bvh};
 use crate::core::math::{dot, sub};
 use crate::core::patch::{clip_side, piece_polygon_local, Cut, Direction, Grid, Region, MAX_CUTS};
+use crate::core::polygon::{polygon_area_centroid, stratified_points};
 
 /// Points per half of a cut piece tested for connectivity (module doc,
 /// "Pieces cut by a wall").
@@ -61,25 +61,31 @@ fn wall_across(
     })
 }
 
-/// The chain of cuts of piece `p` of a triangle with unit normal `n`
-/// facing `dir` (module doc, "Pieces cut by a wall"): its parts with their
-/// regions, in chain order, or `None` when no wall cuts it.
+/// One part of a cut piece: its region, and its area (voxel faces) and
+/// centroid (relative to the voxel's minimum corner, voxel units).
+pub type Part = (Region, f64, [f64; 3]);
+
+/// The chain of cuts of triangle `tri`'s piece in `voxel`, the triangle
+/// with unit normal `n` facing `dir` (module doc, "Pieces cut by a wall"):
+/// its parts in chain order, or `None` when no wall cuts it. Parts need an
+/// area above `min_area` (voxel faces).
 #[allow(clippy::too_many_arguments)]
 pub fn cut_piece(
     grid: &Grid,
     coords: &[[f64; 9]],
-    p: &Piece,
+    (tri, voxel): (u32, [u32; 3]),
     n: [f64; 3],
     dir: Direction,
     bvh: &Bvh,
     reach: (f64, f64),
     normals: &[[f64; 3]],
-) -> Option<Vec<(Region, Piece)>> {
+    min_area: f64,
+) -> Option<Vec<Part>> {
     let world = |l: [f64; 3]| -> [f64; 3] {
-        std::array::from_fn(|q| grid.origin[q] + grid.size * (p.voxel[q] as f64 + l[q]))
+        std::array::from_fn(|q| grid.origin[q] + grid.size * (voxel[q] as f64 + l[q]))
     };
-    let whole = piece_polygon_local(&coords[p.tri as usize], p.voxel, &Region::default());
-    let mut parts: Vec<(Region, Piece)> = Vec::new();
+    let whole = piece_polygon_local(&coords[tri as usize], voxel, &Region::default());
+    let mut parts: Vec<Part> = Vec::new();
     let mut rest = Region::default();
     let mut rest_poly = whole;
     while parts.len() < MAX_CUTS {
@@ -88,16 +94,14 @@ pub fn cut_piece(
         };
         // The blocking triangle's plane in this voxel's coordinates.
         let nb = normals[blocker as usize].map(|x| x as f32);
-        let v0: [f64; 3] = std::array::from_fn(|q| coords[blocker as usize][q] - p.voxel[q] as f64);
+        let v0: [f64; 3] = std::array::from_fn(|q| coords[blocker as usize][q] - voxel[q] as f64);
         let mut cut = Cut {
             n: nb,
             d: (0..3).map(|q| nb[q] as f64 * v0[q]).sum::<f64>() as f32,
         };
         let mut sides = [true, false].map(|positive| clip_side(&rest_poly, cut, positive));
-        let areas = sides
-            .clone()
-            .map(|poly| crate::bake::pieces::polygon_area_centroid(&poly, n));
-        if !(areas[0].0 > MIN_PIECE_AREA && areas[1].0 > MIN_PIECE_AREA)
+        let areas = sides.clone().map(|poly| polygon_area_centroid(&poly, n));
+        if !(areas[0].0 > min_area && areas[1].0 > min_area)
             || halves_connected(&sides, &world, n, dir, bvh, reach)
         {
             break;
@@ -112,30 +116,16 @@ pub fn cut_piece(
             };
             sides.swap(0, 1);
         }
-        let (area, centroid) = crate::bake::pieces::polygon_area_centroid(&sides[0], n);
-        parts.push((
-            rest.with(cut, true)?,
-            Piece {
-                area,
-                centroid,
-                ..*p
-            },
-        ));
+        let (area, centroid) = polygon_area_centroid(&sides[0], n);
+        parts.push((rest.with(cut, true)?, area, centroid));
         rest = rest.with(cut, false)?;
         rest_poly = std::mem::take(&mut sides[1]);
     }
     if parts.is_empty() {
         return None;
     }
-    let (area, centroid) = crate::bake::pieces::polygon_area_centroid(&rest_poly, n);
-    parts.push((
-        rest,
-        Piece {
-            area,
-            centroid,
-            ..*p
-        },
-    ));
+    let (area, centroid) = polygon_area_centroid(&rest_poly, n);
+    parts.push((rest, area, centroid));
     Some(parts)
 }
 

@@ -6,7 +6,6 @@
 //! built from them too.
 
 use super::voxelize::{grid_coords, Voxelization};
-use crate::core::math::{cross, dot, sub};
 use crate::core::patch::piece_polygon;
 use crate::core::scene::Scene;
 use rayon::prelude::*;
@@ -51,24 +50,7 @@ pub fn geometry(scene: &Scene, vox: &Voxelization) -> Vec<PieceGeo> {
         .collect()
 }
 
-/// Area and centroid of a planar polygon with unit normal `n`.
-pub fn polygon_area_centroid(poly: &[[f64; 3]], n: [f64; 3]) -> (f64, [f64; 3]) {
-    if poly.len() < 3 {
-        return (0.0, poly.first().copied().unwrap_or([0.0; 3]));
-    }
-    let (mut a2, mut acc) = (0.0, [0.0; 3]);
-    for i in 1..poly.len() - 1 {
-        let s = dot(cross(sub(poly[i], poly[0]), sub(poly[i + 1], poly[0])), n);
-        a2 += s;
-        for q in 0..3 {
-            acc[q] += s * (poly[0][q] + poly[i][q] + poly[i + 1][q]);
-        }
-    }
-    if !(a2.abs() > 0.0) {
-        return (0.0, poly[0]);
-    }
-    (0.5 * a2.abs(), acc.map(|x| x / (3.0 * a2)))
-}
+pub use crate::core::polygon::polygon_area_centroid;
 
 /// The piece indices of each voxelization patch.
 pub fn by_patch(vox: &Voxelization) -> Vec<Vec<usize>> {

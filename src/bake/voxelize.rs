@@ -135,44 +135,7 @@ pub const SMALL_COMPONENT: f64 = 0.1;
 /// components (module doc, "Connected surfaces").
 pub const RELIEF_LIFT: f64 = 0.25;
 
-/// `count` points on a convex polygon, stratified by area: point `s` in
-/// the fan triangle at the area quantile `(s + ½)/count`, placed there by
-/// the R2 sequence (Roberts 2018) folded into the triangle. Empty for a
-/// polygon without area.
-pub fn stratified_points(poly: &[[f64; 3]], count: usize) -> Vec<[f64; 3]> {
-    const R2: [f64; 2] = [0.754_877_666_246_692_7, 0.569_840_290_998_053_2];
-    let mut fans: Vec<(usize, f64)> = Vec::new();
-    let mut total = 0.0;
-    for t in 1..poly.len().saturating_sub(1) {
-        let a =
-            0.5 * crate::core::math::norm(cross(sub(poly[t], poly[0]), sub(poly[t + 1], poly[0])));
-        if a > 0.0 {
-            total += a;
-            fans.push((t, total));
-        }
-    }
-    if fans.is_empty() {
-        return Vec::new();
-    }
-    (0..count)
-        .map(|s| {
-            let q = (s as f64 + 0.5) / count as f64 * total;
-            let f = fans.partition_point(|x| x.1 < q).min(fans.len() - 1);
-            let t = fans[f].0;
-            let (mut u, mut v) = (
-                (0.5 + R2[0] * s as f64).fract(),
-                (0.5 + R2[1] * s as f64).fract(),
-            );
-            if u + v > 1.0 {
-                u = 1.0 - u;
-                v = 1.0 - v;
-            }
-            std::array::from_fn(|k| {
-                poly[0][k] + u * (poly[t][k] - poly[0][k]) + v * (poly[t + 1][k] - poly[0][k])
-            })
-        })
-        .collect()
-}
+pub use crate::core::polygon::stratified_points;
 
 /// The kernel source, embedded.
 pub const KERNEL_SOURCE: &str = include_str!("../../kernels/voxelize.cl");
@@ -674,18 +637,19 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
 
     // Pieces cut by a wall (module doc): each cut piece is replaced by its
     // parts, appended to the piece list with their regions.
-    let cuts: Vec<Option<Vec<(Region, Piece)>>> = kept
+    let cuts: Vec<Option<Vec<crate::bake::cut::Part>>> = kept
         .par_iter()
         .map(|&(_, dir, tri, i)| {
             crate::bake::cut::cut_piece(
                 &grid,
                 &coords,
-                &pieces[i],
+                (tri, pieces[i].voxel),
                 normals[tri as usize],
                 dir,
                 &bvh,
                 (lift, own),
                 &normals,
+                MIN_PIECE_AREA,
             )
         })
         .collect();
@@ -697,8 +661,12 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
             None => cut_kept.push((key, dir, tri, i)),
             Some(parts) => {
                 stats.cut_pieces += 1;
-                for &(region, part) in parts {
-                    all.push(part);
+                for &(region, area, centroid) in parts {
+                    all.push(Piece {
+                        area,
+                        centroid,
+                        ..pieces[i]
+                    });
                     regions.push(region);
                     cut_kept.push((key, dir, tri, all.len() - 1));
                 }

@@ -12,5 +12,6 @@ pub mod math;
 pub mod npy;
 pub mod patch;
 pub mod permutation;
+pub mod polygon;
 pub mod scene;
 pub mod scene_config;
