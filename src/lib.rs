@@ -51,7 +51,9 @@
 //! 2. [`bake::voxelize`]: voxel patches ([`core::patch`]) — one per occupied
 //!    voxel and open axis direction, in the mean plane of its geometry, with
 //!    that geometry's projected area (`kernels/voxelize.cl`); what cannot be
-//!    seen (covered points: [`bake::cover`]) is in no patch.
+//!    seen (covered points: [`bake::cover`]) is in no patch; a piece that a
+//!    wall thinner than a voxel crosses is first cut along the wall's plane
+//!    ([`bake::cut`]; the cut planes go into the surface map).
 //! 3. [`bake::form_factor`]: form factors `F` between patches with
 //!    visibility (`kernels/form_factor.cl`, a BVH of the original
 //!    triangles, [`core::bvh`]).
