@@ -595,51 +595,52 @@ impl PatchSamples {
     }
 }
 
+/// A map for tests: one triangle whose piece in voxel (1, 0, 0) is cut
+/// twice: x ≥ 0.3 (part 0, patch 0), else x ≤ 0.6 (part 1, patch 1), else
+/// part 2 (patch 2); one whole piece in voxel (2, 0, 0) (patch 1).
+#[cfg(test)]
+pub(crate) fn cut_chain_example() -> SurfaceMap {
+    let mut m = SurfaceMap::without_geometry(3);
+    m.dims = [4, 1, 1];
+    m.tri_start = vec![0, 4];
+    let piece = |x: u16, flags: u16, patch: u32| MapPiece {
+        voxel: [x, 0, 0],
+        flags,
+        patch,
+    };
+    m.pieces = vec![
+        piece(1, PIECE_CUT, 0),
+        piece(1, PIECE_CUT, 1),
+        piece(1, 0, 2),
+        piece(2, 0, 1),
+    ];
+    m.cuts = vec![
+        (
+            0,
+            Cut {
+                n: [-1.0, 0.0, 0.0],
+                d: -0.3,
+            },
+        ),
+        (
+            1,
+            Cut {
+                n: [-1.0, 0.0, 0.0],
+                d: -0.6,
+            },
+        ),
+    ];
+    m.patch_voxel = vec![[1, 0, 0]; 3];
+    m
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// One triangle whose piece in voxel (1, 0, 0) is cut twice: x ≥ 0.3
-    /// (part 0, patch 0), else x ≤ 0.6 (part 1, patch 1), else part 2
-    /// (patch 2); one whole piece in voxel (2, 0, 0) (patch 1).
-    fn chain() -> SurfaceMap {
-        let mut m = SurfaceMap::without_geometry(3);
-        m.dims = [4, 1, 1];
-        m.tri_start = vec![0, 4];
-        let piece = |x: u16, flags: u16, patch: u32| MapPiece {
-            voxel: [x, 0, 0],
-            flags,
-            patch,
-        };
-        m.pieces = vec![
-            piece(1, PIECE_CUT, 0),
-            piece(1, PIECE_CUT, 1),
-            piece(1, 0, 2),
-            piece(2, 0, 1),
-        ];
-        m.cuts = vec![
-            (
-                0,
-                Cut {
-                    n: [-1.0, 0.0, 0.0],
-                    d: -0.3,
-                },
-            ),
-            (
-                1,
-                Cut {
-                    n: [-1.0, 0.0, 0.0],
-                    d: -0.6,
-                },
-            ),
-        ];
-        m.patch_voxel = vec![[1, 0, 0]; 3];
-        m
-    }
-
     #[test]
     fn a_chain_of_cuts_round_trips_and_names_its_regions() {
-        let m = chain();
+        let m = cut_chain_example();
         m.check(3).unwrap();
         let b = m.to_bytes();
         assert_eq!(SurfaceMap::from_bytes(&b, 3).unwrap(), m);
@@ -653,7 +654,7 @@ mod tests {
         assert!(m.region(3).sides().is_empty());
         // A map without cuts has no tail: its bytes are the format before
         // cuts existed, and read back.
-        let mut plain = chain();
+        let mut plain = cut_chain_example();
         plain.pieces = vec![plain.pieces[2], plain.pieces[3]];
         plain.tri_start = vec![0, 2];
         plain.cuts.clear();
@@ -664,7 +665,7 @@ mod tests {
 
     #[test]
     fn broken_chains_are_refused_with_what_is_wrong() {
-        let mut m = chain();
+        let mut m = cut_chain_example();
         m.pieces[2].flags = PIECE_CUT;
         m.pieces.pop();
         m.tri_start = vec![0, 3];
@@ -678,23 +679,23 @@ mod tests {
         let e = m.check(3).unwrap_err();
         assert!(e.contains("without its next part"), "{e}");
 
-        let mut m = chain();
+        let mut m = cut_chain_example();
         m.cuts.pop();
         let e = m.check(3).unwrap_err();
         assert!(e.contains("1 cuts for 2 cut pieces"), "{e}");
 
-        let mut m = chain();
+        let mut m = cut_chain_example();
         m.cuts[1].1.d = f32::NAN;
         let e = m.check(3).unwrap_err();
         assert!(e.contains("piece 1: cut plane"), "{e}");
 
-        let mut m = chain();
+        let mut m = cut_chain_example();
         m.pieces[1].flags = 0;
         let e = m.check(3).unwrap_err();
         assert!(e.contains("not sorted") || e.contains("cut pieces"), "{e}");
 
         // Truncated in the cut table.
-        let b = chain().to_bytes();
+        let b = cut_chain_example().to_bytes();
         let e = SurfaceMap::from_bytes(&b[..b.len() - 3], 3).unwrap_err();
         assert!(e.contains("cuts"), "{e}");
     }

@@ -219,11 +219,36 @@ impl Patch {
     }
 }
 
-/// Sutherland–Hodgman against `x_k ≥ −slack` or `x_k ≤ 1 + slack` (the
-/// voxelization kernel's `clip_axis`, in f64, at slack 0).
-fn clip_axis(src: &[[f64; 3]], k: usize, keep_high: bool, slack: f64) -> Vec<[f64; 3]> {
+/// Sutherland–Hodgman: the part of a convex polygon where `dist ≥ 0`;
+/// `snap` adjusts each new vertex on the boundary (an axis clip sets that
+/// coordinate to the bound exactly).
+fn clip_by(
+    src: &[[f64; 3]],
+    dist: impl Fn(&[f64; 3]) -> f64,
+    snap: impl Fn(&mut [f64; 3]),
+) -> Vec<[f64; 3]> {
     let m = src.len();
     let mut out = Vec::with_capacity(m + 1);
+    for i in 0..m {
+        let p = (i + m - 1) % m;
+        let (dc, dp) = (dist(&src[i]), dist(&src[p]));
+        let (cin, pin) = (dc >= 0.0, dp >= 0.0);
+        if cin != pin {
+            let t = dp / (dp - dc);
+            let mut q: [f64; 3] = std::array::from_fn(|j| src[p][j] + t * (src[i][j] - src[p][j]));
+            snap(&mut q);
+            out.push(q);
+        }
+        if cin {
+            out.push(src[i]);
+        }
+    }
+    out
+}
+
+/// Against `x_k ≥ −slack` or `x_k ≤ 1 + slack` (the voxelization kernel's
+/// `clip_axis`, in f64, at slack 0).
+fn clip_axis(src: &[[f64; 3]], k: usize, keep_high: bool, slack: f64) -> Vec<[f64; 3]> {
     let bound = if keep_high { 1.0 + slack } else { -slack };
     let dist = |p: &[f64; 3]| {
         if keep_high {
@@ -232,21 +257,7 @@ fn clip_axis(src: &[[f64; 3]], k: usize, keep_high: bool, slack: f64) -> Vec<[f6
             p[k] - bound
         }
     };
-    for i in 0..m {
-        let p = (i + m - 1) % m;
-        let (dc, dp) = (dist(&src[i]), dist(&src[p]));
-        let (cin, pin) = (dc >= 0.0, dp >= 0.0);
-        if cin != pin {
-            let t = dp / (dp - dc);
-            let mut q: [f64; 3] = std::array::from_fn(|j| src[p][j] + t * (src[i][j] - src[p][j]));
-            q[k] = bound;
-            out.push(q);
-        }
-        if cin {
-            out.push(src[i]);
-        }
-    }
-    out
+    clip_by(src, dist, |q| q[k] = bound)
 }
 
 /// The part of a triangle (coordinates relative to a voxel's minimum
@@ -361,31 +372,8 @@ impl Region {
 
 /// Sutherland–Hodgman against one side of a [`Cut`].
 pub fn clip_side(src: &[[f64; 3]], cut: Cut, positive: bool) -> Vec<[f64; 3]> {
-    let m = src.len();
-    let mut out = Vec::with_capacity(m + 1);
-    let dist = |p: &[f64; 3]| {
-        let s = cut.side(*p);
-        if positive {
-            s
-        } else {
-            -s
-        }
-    };
-    for i in 0..m {
-        let p = (i + m - 1) % m;
-        let (dc, dp) = (dist(&src[i]), dist(&src[p]));
-        let (cin, pin) = (dc >= 0.0, dp >= 0.0);
-        if cin != pin {
-            let t = dp / (dp - dc);
-            out.push(std::array::from_fn(|j| {
-                src[p][j] + t * (src[i][j] - src[p][j])
-            }));
-        }
-        if cin {
-            out.push(src[i]);
-        }
-    }
-    out
+    let sign = if positive { 1.0 } else { -1.0 };
+    clip_by(src, |p| sign * cut.side(*p), |_| {})
 }
 
 /// A voxel-local polygon clipped to a [`Region`].

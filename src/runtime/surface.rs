@@ -138,39 +138,12 @@ pub fn apply(w: &Weights, values: &[Vec<f32>; 3]) -> [f32; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bakefile::surface::{MapPiece, PIECE_CUT};
-    use crate::core::patch::Cut;
 
     /// The part of a cut piece holding the point lights it: the chain
     /// x ≥ 0.3 | x ≤ 0.6 | rest in voxel 1 maps to patches 0, 1, 2.
     #[test]
     fn a_point_takes_the_patch_of_the_part_it_lies_in() {
-        let mut m = SurfaceMap::without_geometry(3);
-        m.dims = [4, 1, 1];
-        m.tri_start = vec![0, 3];
-        let piece = |flags: u16, patch: u32| MapPiece {
-            voxel: [1, 0, 0],
-            flags,
-            patch,
-        };
-        m.pieces = vec![piece(PIECE_CUT, 0), piece(PIECE_CUT, 1), piece(0, 2)];
-        m.cuts = vec![
-            (
-                0,
-                Cut {
-                    n: [-1.0, 0.0, 0.0],
-                    d: -0.3,
-                },
-            ),
-            (
-                1,
-                Cut {
-                    n: [-1.0, 0.0, 0.0],
-                    d: -0.6,
-                },
-            ),
-        ];
-        m.patch_voxel = vec![[1, 0, 0]; 3];
+        let m = crate::bakefile::surface::cut_chain_example();
         m.check(3).unwrap();
         for (x, patch) in [
             (1.1, 0),
