@@ -88,6 +88,7 @@ pub fn cut_piece(
     let mut parts: Vec<Part> = Vec::new();
     let mut rest = Region::default();
     let mut rest_poly = whole;
+    let mut rest_area = (0.0, [0.0; 3]);
     while parts.len() < MAX_CUTS {
         let Some(blocker) = wall_across(&rest_poly, &world, n, dir, bvh, reach, normals) else {
             break;
@@ -100,7 +101,7 @@ pub fn cut_piece(
             d: (0..3).map(|q| nb[q] as f64 * v0[q]).sum::<f64>() as f32,
         };
         let mut sides = [true, false].map(|positive| clip_side(&rest_poly, cut, positive));
-        let areas = sides.clone().map(|poly| polygon_area_centroid(&poly, n));
+        let mut areas = [0, 1].map(|k| polygon_area_centroid(&sides[k], n));
         if !(areas[0].0 > min_area && areas[1].0 > min_area)
             || halves_connected(&sides, &world, n, dir, bvh, reach)
         {
@@ -115,17 +116,17 @@ pub fn cut_piece(
                 d: -cut.d,
             };
             sides.swap(0, 1);
+            areas.swap(0, 1);
         }
-        let (area, centroid) = polygon_area_centroid(&sides[0], n);
-        parts.push((rest.with(cut, true)?, area, centroid));
+        parts.push((rest.with(cut, true)?, areas[0].0, areas[0].1));
         rest = rest.with(cut, false)?;
         rest_poly = std::mem::take(&mut sides[1]);
+        rest_area = areas[1];
     }
     if parts.is_empty() {
         return None;
     }
-    let (area, centroid) = polygon_area_centroid(&rest_poly, n);
-    parts.push((rest, area, centroid));
+    parts.push((rest, rest_area.0, rest_area.1));
     Some(parts)
 }
 
