@@ -136,7 +136,7 @@ pub(super) const AVX2_SEGMENT: usize = 128;
 /// - then per block row its 6 accumulators stay in registers while the
 ///   segment's columns pass: per block one index broadcast, two shifts,
 ///   three palette loads, six in-lane shuffles (`vpermilps`) and six fused
-///   multiply-adds, with `B0` from [`super::b0_groups`].
+///   multiply-adds, with `B0` from [`super::fill_b0_groups`].
 ///
 /// The segment's blocks stay in L1 between block rows. (Before segments,
 /// every block row passed over the whole row of tiles, whose blocks, `B0`
