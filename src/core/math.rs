@@ -52,6 +52,29 @@ impl SplitMix64 {
     }
 }
 
+/// Point `k` of the (0, 2)-sequence in base 2 (Sobol', 1967: the van der
+/// Corput sequence and Sobol's second dimension, whose direction numbers
+/// follow `v ← v ⊕ (v >> 1)`; Kollig & Keller, "Efficient Multidimensional
+/// Sampling", Eurographics 2002), digitally shifted by `shift` (each 32-bit
+/// fraction XORed with it). Every prefix of `2^m` points is a (0, m, 2)-net:
+/// one point in each dyadic box of area `2^-m`, so in particular its
+/// projection on either axis has one point in each interval
+/// `[j 2^-m, (j + 1) 2^-m)`. The digital shift maps dyadic intervals onto
+/// dyadic intervals, so shifted points keep that property.
+pub fn sobol02(k: u32, shift: [u32; 2]) -> [f64; 2] {
+    let a = k.reverse_bits();
+    let (mut b, mut v, mut i) = (0u32, 1u32 << 31, k);
+    while i != 0 {
+        if i & 1 != 0 {
+            b ^= v;
+        }
+        i >>= 1;
+        v ^= v >> 1;
+    }
+    let f = |x: u32| x as f64 * (1.0 / 4_294_967_296.0);
+    [f(a ^ shift[0]), f(b ^ shift[1])]
+}
+
 /// `a + b`.
 pub fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
@@ -89,4 +112,39 @@ pub fn tangent_basis(n: [f64; 3]) -> ([f64; 3], [f64; 3]) {
         [1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]],
         [b, sign + n[1] * n[1] * a, -n[1]],
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The property the patches' sample points rely on: for any digital
+    /// shift, the first 8 and the first 16 points have one point in each
+    /// eighth (sixteenth) of [0, 1) along either axis, and the first 16
+    /// one point in each dyadic box of area 1/16 (4 × 4, 2 × 8, 8 × 2).
+    #[test]
+    fn sobol02_prefixes_are_nets_for_any_shift() {
+        let mut rng = SplitMix64::new(7);
+        for trial in 0..200 {
+            let r = rng.next_u64();
+            let shift = if trial == 0 {
+                [0, 0]
+            } else {
+                [r as u32, (r >> 32) as u32]
+            };
+            let pts: Vec<[f64; 2]> = (0..16).map(|k| sobol02(k, shift)).collect();
+            assert!(pts.iter().flatten().all(|&x| (0.0..1.0).contains(&x)));
+            for (m, count) in [(3u32, 8usize), (4, 16)] {
+                for a in 0..=m {
+                    let (cx, cy) = (1usize << a, 1usize << (m - a));
+                    let mut seen = vec![false; cx * cy];
+                    for p in &pts[..count] {
+                        let cell = (p[0] * cx as f64) as usize * cy + (p[1] * cy as f64) as usize;
+                        assert!(!seen[cell], "two of the first {count} points share a {cx} × {cy} box (shift {shift:?})");
+                        seen[cell] = true;
+                    }
+                }
+            }
+        }
+    }
 }
