@@ -11,8 +11,10 @@
 //! piece's triangle (the front-most piece along the patch normal where
 //! pieces overlap in projection). The sequence is progressive, so every
 //! prefix of the kept points is spread over the region, and deterministic.
-//! Its first 8 and 16 points have one point in each eighth and sixteenth
-//! of the box along either axis, which matters because shadow edges in
+//! Each point is moved to the centre of its 1/32 of the box along either
+//! axis, which keeps it 1/64 of the box away from the edges. The first 8
+//! and 16 points have one point in each eighth and sixteenth of the box
+//! along either axis, which matters because shadow edges in
 //! architecture are often parallel to a patch's sides: the R2 sequence
 //! used before leaves the last 17.7 % of its first axis empty for 16
 //! points (and so did every patch, in the same place), and on Sponza the
@@ -367,7 +369,12 @@ fn sample_patch(
             if out.len() == SAMPLES_PER_PATCH {
                 break;
             }
-            let s = sobol02(k as u32, shift);
+            // At the centre of its 1/32 of the box along each axis: the
+            // first 32 points keep one point per 1/32 (and the first 16 one
+            // per 1/16), and no point comes closer than 1/64 of the box to
+            // its edges, where a wall meets the surface (GL shadow maps
+            // cannot resolve a point 0.1 mm from the wall that shades it).
+            let s = sobol02(k as u32, shift).map(|c| ((c * 32.0).floor() + 0.5) / 32.0);
             let x = [
                 lo[0] + s[0] * (hi[0] - lo[0]),
                 lo[1] + s[1] * (hi[1] - lo[1]),
