@@ -655,7 +655,7 @@ fn slotted_roof() -> (Vec<Quad>, Vec<[f64; 4]>) {
     let mut slots = Vec::new();
     let end = |k: usize| {
         let lo = voxel * k as f64;
-        if k % 2 == 0 {
+        if k.is_multiple_of(2) {
             (lo, lo + w)
         } else {
             (lo + voxel - w, lo + voxel)
