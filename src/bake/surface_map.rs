@@ -22,7 +22,7 @@
 //! 0.5 m along that side, got no direct light at all (the floor's sunlit
 //! power came out 14 % low at one voxel size, 5 % at another, and with it
 //! the whole bake's indirect light). The shift per patch makes each
-//! patch's estimate unbiased, so the errors of a row of patches along one
+//! patch's estimate unbiased to within the 1/64 of the centring, so the errors of a row of patches along one
 //! shadow edge no longer add up. A region
 //! covering less than 1/[`MAX_TRIES_PER_SAMPLE`] of its box (a thin diagonal
 //! strip) fills the remaining samples with its pieces' centroids, counted.
