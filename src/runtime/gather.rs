@@ -17,8 +17,8 @@
 //! tile column) (8 bytes per tile of the image, beside the codec's own 4),
 //! and `B0` is re-laid for the kernels in the active groups only, so that
 //! the work outside the kernels also follows the active columns (a product
-//! with nothing active: 31 µs on Sponza at 3,965 patches, 56 µs when every
-//! stored tile was tested). Active block columns scattered
+//! with nothing active: 31–46 µs on Sponza at 3,965 patches, 55–57 µs when
+//! every stored tile was tested). Active block columns scattered
 //! by skipping are prefetched a few columns ahead (the hardware prefetcher
 //! predicts only the contiguous case). A grey matrix
 //! (one stored channel) is decoded once for the three channels of `B0`;
