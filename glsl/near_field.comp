@@ -4,9 +4,10 @@
 // stage 0, one invocation per receiver i: c_i = sum over its links l of
 // sum_g w[l][g] * rho_p * D_p,g (p the link's neighbour, g its lit points,
 // D at the points from direct.comp), summed per link in f32 as the CPU
-// does; then the gather's input B0_i + rho_i c_i (B0 itself stays as the
-// direct pass wrote it), and the tile column of a non-zero one is flagged
-// for the gather.
+// does; delta_i = sum_g own[i][g] * rho_i * D_i,g (its exitance as the far
+// field sees it, less the plain mean); then the gather's input
+// B0_i + delta_i + rho_i c_i (B0 itself stays as the direct pass wrote
+// it), and the tile column of a non-zero one is flagged for the gather.
 // stage 1, after the gather: H_i += c_i.
 
 layout(local_size_x = 64) in;
@@ -21,6 +22,7 @@ layout(std430, binding = 6) readonly buffer B0 { float b0[]; };               //
 layout(std430, binding = 9) writeonly buffer BGather { float b_gather[]; };   // 3 n, channel-major
 layout(std430, binding = 7) buffer Active { uint tile_active[]; };
 layout(std430, binding = 8) buffer H { float h[]; };                          // 3 n, channel-major
+layout(std430, binding = 10) readonly buffer Own { float own_w[]; };         // SAMPLES_PER_PATCH per patch
 
 uniform uint n;
 uniform uint samples;
@@ -45,10 +47,17 @@ void main() {
             cv[c] += s;
         }
     }
+    vec3 delta = vec3(0.0);
+    for (uint c = 0u; c < 3u; c++) {
+        for (uint g = 0u; g < samples; g++) {
+            float b = albedo[c * n + i] * d_points[(c * n + i) * samples + g];
+            delta[c] += own_w[i * uint(SAMPLES_PER_PATCH) + g] * b;
+        }
+    }
     bool any_light = false;
     for (uint c = 0u; c < 3u; c++) {
         corr[c * n + i] = cv[c];
-        float b = b0[c * n + i] + albedo[c * n + i] * cv[c];
+        float b = b0[c * n + i] + delta[c] + albedo[c * n + i] * cv[c];
         b_gather[c * n + i] = b;
         any_light = any_light || b != 0.0;
     }

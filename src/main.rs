@@ -483,6 +483,11 @@ struct BakeArgs {
     /// patch sees, not its mean (docs/accuracy.md).
     #[arg(long, value_name = "N", default_value_t = radiosity::bake::near_field::DEFAULT_RAYS)]
     near_field_rays: u32,
+    /// Near-field links with a measured form factor below this (0..=1) are
+    /// not stored; their light still reaches the receivers through each
+    /// patch's far weights. Lower keeps more links (larger file).
+    #[arg(long, value_name = "F", default_value_t = radiosity::bake::near_field::MIN_FORM_FACTOR)]
+    near_field_min_form_factor: f64,
     /// Form-factor emitter samples per side, contour method (1..=16, default 4).
     #[arg(long)]
     ff_samples: Option<u32>,
@@ -607,6 +612,7 @@ impl BakeArgs {
             error_lights: self.error_lights,
             two_sided: self.two_sided,
             near_field_rays: self.near_field_rays,
+            near_field_min_form_factor: self.near_field_min_form_factor,
             output: self.output,
             export: self.export,
         };
@@ -628,6 +634,7 @@ fn flag_of(option: &str) -> Option<&'static str> {
         "form-factor rays per pair" => "--ff-rays",
         "form-factor rays per patch" => "--ff-rays-per-patch",
         "near-field rays per patch" => "--near-field-rays",
+        "near-field minimum form factor" => "--near-field-min-form-factor",
         "bounces" => "--bounces",
         _ => return None,
     })

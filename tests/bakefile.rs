@@ -1000,6 +1000,9 @@ fn with_near_field() -> BakeFile {
             shares: (0..5)
                 .map(|j| std::array::from_fn(|k| if k == j { 0.5 } else { 0.5 / 15.0 }))
                 .collect(),
+            far: (0..5)
+                .map(|j| std::array::from_fn(|k| if k == j + 1 { 0.25 } else { 0.75 / 15.0 }))
+                .collect(),
         },
         ..sample()
     }
@@ -1014,6 +1017,14 @@ fn near_field_round_trips_and_is_optional() {
     let plain = encode(&sample()).unwrap();
     assert!(sections_of(&plain).iter().all(|s| &s.0 != b"NEAR"));
     assert!(parse(&plain).unwrap().near_field.is_empty());
+    // A file from before far weights were stored (flags 0, shares only)
+    // reads back without them, and its far weights are its shares.
+    let mut old = bf.clone();
+    old.near_field.far.clear();
+    let read = parse(&encode(&old).unwrap()).unwrap();
+    assert_eq!(read, old);
+    assert_eq!(read.near_field.far_of(2), &old.near_field.shares[2]);
+    assert_eq!(bf.near_field.far_of(2), &bf.near_field.far[2]);
     // In matrix order (the sample's permutation [2, 0, 1, 4, 3]):
     // receiver 0 is now row 1, and its neighbours 1 and 3 are 2 and 4.
     let order = [2u32, 0, 1, 4, 3];
@@ -1075,6 +1086,22 @@ fn near_field_errors_name_the_section_and_the_value() {
             "patch 1: cell shares",
         ),
         (
+            Box::new(move |b: &mut Vec<u8>| {
+                let at = links_at + 3 * 36 + 5 * 64 + 3 * 64 + 8;
+                b[at..at + 4].copy_from_slice(&(-0.5f32).to_le_bytes())
+            }),
+            "patch 3: far weights",
+        ),
+        (
+            Box::new(|b: &mut Vec<u8>| b[12..16].copy_from_slice(&3u32.to_le_bytes())),
+            "flags are 0x3",
+        ),
+        (
+            // Flags say no far weights, but they are there.
+            Box::new(|b: &mut Vec<u8>| b[12..16].copy_from_slice(&0u32.to_le_bytes())),
+            "expected",
+        ),
+        (
             Box::new(|b: &mut Vec<u8>| b[8..12].copy_from_slice(&4u32.to_le_bytes())),
             "4 cells per link",
         ),
@@ -1083,7 +1110,7 @@ fn near_field_errors_name_the_section_and_the_value() {
             "link starts decrease",
         ),
     ];
-    assert_eq!(near.len(), 16 + 4 * 6 + 3 * 36 + 5 * 64);
+    assert_eq!(near.len(), 16 + 4 * 6 + 3 * 36 + 2 * 5 * 64);
     for (f, want) in cases {
         let (_, m) = reject(&with(&*f));
         assert!(m.contains("NEAR") && m.contains(want), "{want}: {m}");

@@ -177,9 +177,10 @@ fn gl_direct_light_and_gather_on_patches_match_the_cpu_run_time_with_nine_lights
         "the Cornell bake has a near-field correction"
     );
     let c_gl = r.near_field_c(gl).expect("the GL renderer applies it");
-    let c_cpu = weights.correction(&radiosity::runtime::direct::reflected_at_points(
+    let terms = weights.correction(&radiosity::runtime::direct::reflected_at_points(
         &rt.baked, &d_points, m,
     ));
+    let c_cpu = &terms.c;
     let c_max = c_cpu.iter().flatten().fold(0.0f32, |a, v| a.max(v.abs()));
     assert!(c_max > 0.0, "the correction is not zero under these lights");
     for (a, b) in c_gl.iter().flatten().zip(c_cpu.iter().flatten()) {
@@ -188,13 +189,33 @@ fn gl_direct_light_and_gather_on_patches_match_the_cpu_run_time_with_nine_lights
             "near field: GL {a} against CPU {b}"
         );
     }
-    // The GL gather of the GL B0 (with the GL correction) against the CPU
-    // gather of the same.
-    let input: [Vec<f32>; 3] = std::array::from_fn(|ch| {
-        (0..rt.n())
-            .map(|j| b0_gl[ch][j] + rt.baked.patches[j].albedo[ch] * c_gl[ch][j])
-            .collect()
-    });
+    // The gather's input B0 + δ + ρ ∘ c: GL's against the CPU's of GL's B0,
+    // c and D. δ sums m products per patch like c's links, so the same
+    // 1e-5 of the largest term bounds the difference; a pass that left δ
+    // out would miss by δ itself, checked to be far above that.
+    let gl_terms = radiosity::runtime::near_field::NearTerms {
+        c: c_gl.clone(),
+        delta: terms.delta.clone(),
+    };
+    let input = gl_terms.gather_input(&b0_gl, &rt.baked.patches);
+    let input_gl = r.near_field_input(gl).expect("the GL renderer applies it");
+    let in_max = input.iter().flatten().fold(0.0f32, |a, v| a.max(v.abs()));
+    let d_max = terms
+        .delta
+        .iter()
+        .flatten()
+        .fold(0.0f32, |a, v| a.max(v.abs()));
+    assert!(
+        d_max > 1e-3 * in_max,
+        "the far weights move some patch's exitance: largest δ {d_max}, input {in_max}"
+    );
+    for (a, b) in input_gl.iter().flatten().zip(input.iter().flatten()) {
+        assert!(
+            (a - b).abs() <= 1e-5 * in_max,
+            "gather input: GL {a} against CPU {b}"
+        );
+    }
+    // The GL gather of that input against the CPU gather of the same.
     let (mut h_cpu_of_gl, _, _) = rt.product(&input);
     for ch in 0..3 {
         for j in 0..rt.n() {

@@ -74,6 +74,10 @@ pub struct BakeConfig {
     /// Rays per patch of the near-field correction (0: none;
     /// [`crate::bake::near_field`]).
     pub near_field_rays: u32,
+    /// Near-field links below this measured form factor are not stored
+    /// (their light still counts, through the far weights;
+    /// [`crate::bakefile::near_field`]).
+    pub near_field_min_form_factor: f64,
     /// The bake file to write, if any.
     #[serde(skip)]
     pub output: Option<PathBuf>,
@@ -98,6 +102,7 @@ impl BakeConfig {
             error_lights: DEFAULT_ERROR_LIGHTS,
             two_sided: false,
             near_field_rays: crate::bake::near_field::DEFAULT_RAYS,
+            near_field_min_form_factor: crate::bake::near_field::MIN_FORM_FACTOR,
             output: None,
             export: None,
         }
@@ -107,7 +112,7 @@ impl BakeConfig {
     /// key; not the device, the output or the exports).
     pub fn cache_key(&self) -> String {
         format!(
-            "v{} {:?} {:?} {:?} {:?} {:?} {} near{}{}",
+            "v{} {:?} {:?} {:?} {:?} {:?} {} near{} far{}{}",
             crate::bakefile::FORMAT_VERSION,
             self.resolution,
             self.form_factor,
@@ -116,6 +121,7 @@ impl BakeConfig {
             self.codec,
             self.error_lights,
             self.near_field_rays,
+            self.near_field_min_form_factor,
             if self.two_sided { " two-sided" } else { "" }
         )
     }
@@ -127,6 +133,13 @@ impl BakeConfig {
                 option: "near-field rays per patch",
                 value: self.near_field_rays.to_string(),
                 expected: format!("0..={}", crate::bake::near_field::MAX_RAYS),
+            });
+        }
+        if !(0.0..=1.0).contains(&self.near_field_min_form_factor) {
+            return Err(BakeError::InvalidOption {
+                option: "near-field minimum form factor",
+                value: self.near_field_min_form_factor.to_string(),
+                expected: "a number in 0..=1".into(),
             });
         }
         match self.resolution {

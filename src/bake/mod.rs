@@ -216,6 +216,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         &samples,
         n,
         config.near_field_rays,
+        config.near_field_min_form_factor,
     )?;
     sp.finish_and_clear();
     stages.push(StageTime {

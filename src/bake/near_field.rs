@@ -13,7 +13,10 @@
 //! of the sample point nearest the hit. Origins on the covered part of a
 //! partly covered piece are not cast, and a receiver's counts are scaled to
 //! `rays` cast. Links whose measured form factor is below
-//! [`MIN_FORM_FACTOR`] are dropped.
+//! `min_form_factor` ([`MIN_FORM_FACTOR`] by default) are dropped, and
+//! their rays, weighted by the receiver's area per ray traced (as the form
+//! factors' rays weigh theirs, so that `A_i F̂_ij = A_j F̂_ji` holds on
+//! average), make up each neighbour's far weights.
 //!
 //! Noise: a link's cells hold about `F̂_ij · rays / 16` rays each; at the
 //! default 4,096 rays and `F̂ = 0.1`, about 26, so a cell's weight has a
@@ -26,7 +29,7 @@ use super::error::BakeError;
 use super::form_factor::rays::{cosine_direction, Hit, Origins, RayScene, Tracer};
 use super::pieces;
 use super::voxelize::Voxelization;
-use crate::bakefile::near_field::{NearField, NearLink, MIN_FORM_FACTOR};
+use crate::bakefile::near_field::{NearField, NearLink};
 use crate::bakefile::surface::{PatchSamples, SAMPLES_PER_PATCH};
 use crate::core::scene::Scene;
 use rayon::prelude::*;
@@ -36,6 +39,8 @@ use std::time::Instant;
 
 /// Rays per patch by default (module doc).
 pub const DEFAULT_RAYS: u32 = 4096;
+
+pub use crate::bakefile::near_field::MIN_FORM_FACTOR;
 
 /// Points per patch measuring its cells' area shares: a share's standard
 /// error is at most `√(s(1 − s)/N)`, 0.8 % of the area for a 1/16 cell.
@@ -48,6 +53,8 @@ pub const MAX_RAYS: u32 = 65_535;
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct NearFieldStats {
     pub rays_per_patch: u32,
+    /// Links below this measured form factor were dropped.
+    pub min_form_factor: f64,
     pub links: u64,
     pub links_per_patch: f64,
     pub bytes: u64,
@@ -56,7 +63,8 @@ pub struct NearFieldStats {
 
 /// The correction for the `n` patches in matrix order (`patch_index_of`:
 /// voxelization patch → matrix patch), whose sample points are `samples`
-/// (matrix order); `rays` per patch (0: none).
+/// (matrix order); `rays` per patch (0: none), links with a measured form
+/// factor of at least `min_form_factor` stored.
 pub fn build(
     scene: &Scene,
     vox: &Voxelization,
@@ -64,6 +72,7 @@ pub fn build(
     samples: &PatchSamples,
     n: usize,
     rays: u32,
+    min_form_factor: f64,
 ) -> Result<(NearField, NearFieldStats), BakeError> {
     let start = Instant::now();
     if rays == 0 || n == 0 {
@@ -74,6 +83,13 @@ pub fn build(
             option: "near-field rays per patch",
             value: rays.to_string(),
             expected: format!("0..={MAX_RAYS}"),
+        });
+    }
+    if !(0.0..=1.0).contains(&min_form_factor) {
+        return Err(BakeError::InvalidOption {
+            option: "near-field minimum form factor",
+            value: min_form_factor.to_string(),
+            expected: "a number in 0..=1".into(),
         });
     }
     let cast = rays;
@@ -130,16 +146,19 @@ pub fn build(
             s.map(|v| v as f32)
         })
         .collect();
-    let rows: Vec<Vec<NearLink>> = (0..n)
+    // Per receiver: its stored links, and its dropped links' rays weighted
+    // by its area per ray traced (for the far weights).
+    type Row = (Vec<NearLink>, Vec<(u32, [f64; SAMPLES_PER_PATCH])>);
+    let rows: Vec<Row> = (0..n)
         .into_par_iter()
         .map(|i| {
             let v = vox_of[i];
             if v == usize::MAX {
-                return Vec::new();
+                return Row::default();
             }
             let origins = Origins::of_patch(v, &by_patch[v], &geo, vox, 0x5851_f42d_4c95_7f2d);
             if origins.is_empty() {
-                return Vec::new();
+                return Row::default();
             }
             let mut links: BTreeMap<u32, [u32; SAMPLES_PER_PATCH]> = BTreeMap::new();
             let (mut f, mut covered) = (0usize, 0u32);
@@ -167,19 +186,44 @@ pub fn build(
             // receiver's counts never exceed `rays`).
             let done = rays.saturating_sub(covered);
             if done == 0 {
-                return Vec::new();
+                return Row::default();
             }
             let to_rays = rays as f64 / done as f64;
-            let min = MIN_FORM_FACTOR * rays as f64;
-            links
-                .into_iter()
-                .map(|(patch, c)| {
-                    let counts: [u16; SAMPLES_PER_PATCH] =
-                        std::array::from_fn(|k| (c[k] as f64 * to_rays).floor() as u16);
-                    NearLink { patch, counts }
-                })
-                .filter(|l| l.counts.iter().map(|&v| v as f64).sum::<f64>() >= min)
-                .collect()
+            let per_ray = vox.patches[v].area / done as f64;
+            let min = min_form_factor * rays as f64;
+            let mut row = Row::default();
+            for (patch, c) in links {
+                let counts: [u16; SAMPLES_PER_PATCH] =
+                    std::array::from_fn(|k| (c[k] as f64 * to_rays).floor() as u16);
+                if counts.iter().map(|&v| v as f64).sum::<f64>() >= min {
+                    row.0.push(NearLink { patch, counts });
+                } else {
+                    row.1.push((patch, c.map(|v| v as f64 * per_ray)));
+                }
+            }
+            row
+        })
+        .collect();
+    // Far weights: the dropped rays per neighbour cell, normalised; a patch
+    // none of them meets takes its area shares.
+    let mut far_sum = vec![[0.0f64; SAMPLES_PER_PATCH]; n];
+    for (_, dropped) in &rows {
+        for (j, w) in dropped {
+            for (f, v) in far_sum[*j as usize].iter_mut().zip(w) {
+                *f += v;
+            }
+        }
+    }
+    let far: Vec<[f32; SAMPLES_PER_PATCH]> = far_sum
+        .iter()
+        .zip(&shares)
+        .map(|(f, s)| {
+            let total: f64 = f.iter().sum();
+            if total > 0.0 {
+                f.map(|v| (v / total) as f32)
+            } else {
+                *s
+            }
         })
         .collect();
     let mut nf = NearField {
@@ -187,14 +231,16 @@ pub fn build(
         starts: Vec::with_capacity(n + 1),
         links: Vec::new(),
         shares,
+        far,
     };
     nf.starts.push(0);
-    for r in rows {
+    for (r, _) in rows {
         nf.links.extend(r);
         nf.starts.push(nf.links.len() as u32);
     }
     let stats = NearFieldStats {
         rays_per_patch: cast,
+        min_form_factor,
         links: nf.links.len() as u64,
         links_per_patch: nf.links.len() as f64 / n as f64,
         bytes: nf.to_bytes().len() as u64,

@@ -281,7 +281,7 @@ impl std::fmt::Display for BakeReport {
             nf.rays_per_patch,
             nf.links,
             nf.links_per_patch,
-            crate::bakefile::near_field::MIN_FORM_FACTOR,
+            nf.min_form_factor,
             nf.bytes,
             nf.seconds
         )?;

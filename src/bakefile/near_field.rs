@@ -29,25 +29,51 @@
 //! through all bounces is `H = T̃ · (B0 + ρ ∘ c) + c`: one sparse product
 //! before the gather and one addition after it.
 //!
-//! Only links with `F̂_ij ≥` [`MIN_FORM_FACTOR`] are stored: the correction
-//! is a near-field effect, and far links' cells are uniformly weighted
-//! (their deviation is noise). A run time lighting fewer than
-//! [`SAMPLES_PER_PATCH`] points merges each cell into its nearest lit point
-//! ([`NearField::groups`]).
+//! Only links with `F̂_ij ≥` [`MIN_FORM_FACTOR`] are stored (by default):
+//! storing every link would take several times the compressed matrix
+//! (Sponza at 1k patches: 2.6 MB against 0.36 MB and a 0.8 MB matrix). The
+//! dropped links are not uniform views, though: on Sponza the sunlit part
+//! of a floor patch lies in the open, seen from afar, and its shaded part
+//! under the arcades is seen by the near neighbours, so keeping only the
+//! near links' deviations lost light (Sponza at 1k patches: the first
+//! reflection −3.4 % against the path tracer, +0.5 % with every link
+//! stored). So each patch `j` also stores its **far weights** `q_jk`: how
+//! the rays that meet it from receivers *without* a stored link spread
+//! over its cells, weighted by those receivers' areas (by reciprocity, how
+//! much of each cell's light leaves towards them). Every dropped link's
+//! deviation `(c_ijk − C_ij s_jk)` is then taken as `C_ij (q_jk − s_jk)`,
+//! their aggregate shape, which the gather carries as a change of `j`'s
+//! exitance, `δ_j = Σ_k (q_jk − s_jk) b_jk`; the stored links deviate
+//! from the same far view, `c_i = Σ_j Σ_k (c_ijk − C_ij q_jk) / rays ·
+//! b_jk`, which for `F̂_ij ≈ C_ij` is the per-link formula above. Through
+//! all bounces `H = T̃ · (B0 + δ + ρ ∘ c) + c`, the first reflection being
+//! `F (B0 + δ) + c`. The weights of `δ` and of each link sum to zero over
+//! `k`, so a uniformly lit patch adds nothing. A patch no dropped ray
+//! meets has `q = s` and `δ = 0`, and so has every patch of a file made
+//! before far weights were stored (read with `q = s`), as it was made.
+//! (Taking the far view against the plain mean `B0` instead, `δ = Σ_k
+//! (q_jk − 1/16) b_jk`, also replaces `B0` by the area-weighted mean of the
+//! points: the first reflection measured +5.0 % there, and +4.7 % with
+//! every link stored and that `δ`. On relief a cell holds steeper, dimmer
+//! surfaces than its point, so area weights credit too much light to it.)
+//!
+//! A run time lighting fewer than [`SAMPLES_PER_PATCH`] points merges each
+//! cell into its nearest lit point ([`NearField::groups`]).
 //!
 //! # Layout (little-endian)
 //!
 //! A 16-byte header — rays per receiver `u32`, links `m u32`, cells per
-//! link `u32` (= [`SAMPLES_PER_PATCH`]), reserved `u32` = 0 — then `n + 1`
-//! link starts (`u32`, receiver `i`'s links are `starts[i]..starts[i+1]`),
-//! then `m` links of 36 bytes: the neighbour (`u32`, file order), then its
-//! 16 cell counts (`u16`); then per patch its 16 cell shares (`f32`, each
-//! ≥ 0, summing to 1).
+//! link `u32` (= [`SAMPLES_PER_PATCH`]), flags `u32` (bit 0: far weights
+//! stored; the other bits 0) — then `n + 1` link starts (`u32`, receiver
+//! `i`'s links are `starts[i]..starts[i+1]`), then `m` links of 36 bytes:
+//! the neighbour (`u32`, file order), then its 16 cell counts (`u16`); then
+//! per patch its 16 cell shares (`f32`, each ≥ 0, summing to 1); then, with
+//! flag bit 0, per patch its 16 far weights (the same rules).
 
 use super::surface::{PatchSamples, SAMPLES_PER_PATCH};
 
-/// Links below this form factor (as the rays measure it) are not stored
-/// (module doc): 2 % of a hemisphere. On Sponza at 4.5k patches it keeps
+/// Links below this form factor (as the rays measure it) are not stored by
+/// default (module doc): 2 % of a hemisphere. On Sponza at 4.5k patches it keeps
 /// about 9 links per patch and, against keeping all, leaves 13.9 % instead
 /// of 13.1 % relative RMS in the red channel's `H` (20.4 % without any).
 pub const MIN_FORM_FACTOR: f64 = 0.02;
@@ -55,8 +81,11 @@ pub const MIN_FORM_FACTOR: f64 = 0.02;
 /// Bytes of one stored link.
 pub const LINK_LEN: usize = 4 + 2 * SAMPLES_PER_PATCH;
 
-/// Bytes of one patch's cell shares.
+/// Bytes of one patch's cell shares (and of its far weights).
 pub const SHARES_LEN: u64 = 4 * SAMPLES_PER_PATCH as u64;
+
+/// Header flag: far weights follow the shares.
+const FLAG_FAR: u32 = 1;
 
 /// One receiver's view of one near neighbour.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -81,6 +110,10 @@ pub struct NearField {
     /// Per patch (empty when `rays == 0`): the share of its area in each
     /// sample point's cell.
     pub shares: Vec<[f32; SAMPLES_PER_PATCH]>,
+    /// Per patch, or empty (files from before they were stored): how the
+    /// rays from receivers without a stored link spread over its cells,
+    /// area-weighted (module doc).
+    pub far: Vec<[f32; SAMPLES_PER_PATCH]>,
 }
 
 impl NearField {
@@ -102,6 +135,12 @@ impl NearField {
         &self.links[self.starts[i] as usize..self.starts[i + 1] as usize]
     }
 
+    /// Patch `j`'s far weights: the stored ones, or for a file without them
+    /// its area shares (the correction as such files were made).
+    pub fn far_of(&self, j: usize) -> &[f32; SAMPLES_PER_PATCH] {
+        self.far.get(j).unwrap_or(&self.shares[j])
+    }
+
     /// The bytes of `NEAR`.
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut out = Vec::with_capacity(16 + 4 * self.starts.len() + LINK_LEN * self.links.len());
@@ -109,7 +148,7 @@ impl NearField {
             self.rays,
             self.links.len() as u32,
             SAMPLES_PER_PATCH as u32,
-            0,
+            if self.far.is_empty() { 0 } else { FLAG_FAR },
         ] {
             out.extend_from_slice(&v.to_le_bytes());
         }
@@ -122,7 +161,7 @@ impl NearField {
                 out.extend_from_slice(&c.to_le_bytes());
             }
         }
-        for s in self.shares.iter().flatten() {
+        for s in self.shares.iter().chain(&self.far).flatten() {
             out.extend_from_slice(&s.to_le_bytes());
         }
         out
@@ -138,16 +177,20 @@ impl NearField {
                 b.len()
             ));
         }
-        let (rays, m, cells, reserved) = (u32_at(0), u32_at(4) as usize, u32_at(8), u32_at(12));
+        let (rays, m, cells, flags) = (u32_at(0), u32_at(4) as usize, u32_at(8), u32_at(12));
         if cells as usize != SAMPLES_PER_PATCH {
             return Err(format!(
                 "{cells} cells per link, this build reads {SAMPLES_PER_PATCH}"
             ));
         }
-        if reserved != 0 {
-            return Err(format!("reserved field is {reserved}, must be 0"));
+        if flags & !FLAG_FAR != 0 {
+            return Err(format!("flags are {flags:#x}, only bit 0 is defined"));
         }
-        let want = (n as u64 + 1) * 4 + m as u64 * LINK_LEN as u64 + 16 + n as u64 * SHARES_LEN;
+        let per_patch = if flags & FLAG_FAR != 0 { 2 } else { 1 };
+        let want = (n as u64 + 1) * 4
+            + m as u64 * LINK_LEN as u64
+            + 16
+            + per_patch * n as u64 * SHARES_LEN;
         if b.len() as u64 != want {
             return Err(format!(
                 "{} bytes, expected {want} for {n} patches and {m} links",
@@ -169,14 +212,23 @@ impl NearField {
             .collect();
         let base = base + LINK_LEN * m;
         let f32_at = |at: usize| f32::from_le_bytes(b[at..at + 4].try_into().expect("4 bytes"));
-        let shares = (0..n)
-            .map(|j| std::array::from_fn(|k| f32_at(base + SHARES_LEN as usize * j + 4 * k)))
-            .collect();
+        let per_patch_at = |base: usize| -> Vec<[f32; SAMPLES_PER_PATCH]> {
+            (0..n)
+                .map(|j| std::array::from_fn(|k| f32_at(base + SHARES_LEN as usize * j + 4 * k)))
+                .collect()
+        };
+        let shares = per_patch_at(base);
+        let far = if per_patch == 2 {
+            per_patch_at(base + SHARES_LEN as usize * n)
+        } else {
+            Vec::new()
+        };
         let nf = NearField {
             rays,
             starts,
             links,
             shares,
+            far,
         };
         nf.check(n)?;
         Ok(nf)
@@ -202,12 +254,18 @@ impl NearField {
                 n + 1
             ));
         }
-        for (j, s) in self.shares.iter().enumerate() {
-            let sum: f64 = s.iter().map(|&v| v as f64).sum();
-            if s.iter().any(|v| !(v.is_finite() && *v >= 0.0)) || (sum - 1.0).abs() > 1e-4 {
-                return Err(format!(
-                    "patch {j}: cell shares {s:?} are not finite numbers ≥ 0 summing to 1"
-                ));
+        if !self.far.is_empty() && self.far.len() != n {
+            return Err(format!("{} far weights for {n} patches", self.far.len()));
+        }
+        let named = [("cell shares", &self.shares), ("far weights", &self.far)];
+        for (what, rows) in named {
+            for (j, s) in rows.iter().enumerate() {
+                let sum: f64 = s.iter().map(|&v| v as f64).sum();
+                if s.iter().any(|v| !(v.is_finite() && *v >= 0.0)) || (sum - 1.0).abs() > 1e-4 {
+                    return Err(format!(
+                        "patch {j}: {what} {s:?} are not finite numbers ≥ 0 summing to 1"
+                    ));
+                }
             }
         }
         if self.starts[0] != 0 || self.starts[n] as usize != self.links.len() {
@@ -254,6 +312,11 @@ impl NearField {
             starts: Vec::with_capacity(order.len() + 1),
             links: Vec::with_capacity(self.links.len()),
             shares: order.iter().map(|&o| self.shares[o as usize]).collect(),
+            far: if self.far.is_empty() {
+                Vec::new()
+            } else {
+                order.iter().map(|&o| self.far[o as usize]).collect()
+            },
         };
         out.starts.push(0);
         for &o in order {

@@ -24,6 +24,7 @@ use crate::core::compute::{Backend, DeviceSelection, Gpu};
 use crate::core::scene;
 use crate::core::scene_config::SceneConfig;
 use crate::reference::PathTracer;
+use crate::runtime::near_field::NearTerms;
 use crate::runtime::{direct, Runtime, RuntimeOptions};
 use anyhow::Context as _;
 use rayon::prelude::*;
@@ -173,10 +174,15 @@ pub fn run(
         if ff.n == n {
             let order = &rt.baked.order;
             let b0 = rt.b0();
-            // The run time's first reflection: F B0 plus the near-field
-            // correction of the same lights (zero without one).
+            // The run time's first reflection: F (B0 + δ) plus the
+            // near-field correction c of the same lights (both zero
+            // without one).
             let near = if rt.near.is_empty() {
-                [vec![0.0; n], vec![0.0; n], vec![0.0; n]]
+                let zero = || [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+                NearTerms {
+                    c: zero(),
+                    delta: zero(),
+                }
             } else {
                 let m = rt.near.m;
                 let (d_points, _) = direct::irradiance(&rt.baked, &rt.direct, &config.lights, m);
@@ -189,9 +195,12 @@ pub fn run(
                     let row = &ff.f[order[i] as usize * n..(order[i] as usize + 1) * n];
                     std::array::from_fn(|c| {
                         (0..n)
-                            .map(|j| row[order[j] as usize] as f64 * b0[c][j] as f64)
+                            .map(|j| {
+                                row[order[j] as usize] as f64
+                                    * (b0[c][j] as f64 + near.delta[c][j] as f64)
+                            })
                             .sum::<f64>()
-                            + near[c][i] as f64
+                            + near.c[c][i] as f64
                     })
                 })
                 .collect();

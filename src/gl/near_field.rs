@@ -1,8 +1,8 @@
 //! The near-field correction on the GPU (`glsl/near_field.comp`): the
 //! bake's near-neighbour weights ([`crate::runtime::near_field`], its CPU
 //! reference) applied to `D` at the lit points of the direct pass, in two
-//! dispatches around the gather: its input `B0 + ρ ∘ c` before it (into a
-//! buffer of its own, so `B0` stays what the direct pass made), `H += c`
+//! dispatches around the gather: its input `B0 + δ + ρ ∘ c` before it (into
+//! a buffer of its own, so `B0` stays what the direct pass made), `H += c`
 //! after.
 //! A bake without the correction compiles nothing and dispatches nothing.
 
@@ -17,9 +17,9 @@ pub const SOURCE: &str = include_str!("../../glsl/near_field.comp");
 /// The pass, when the bake has a correction.
 pub struct GlNearField {
     program: glow::Program,
-    /// Starts, link patches, link weights, `c`, the gather's input
-    /// (bindings 0, 1, 2, 5, 9).
-    buffers: [glow::Buffer; 5],
+    /// Starts, link patches, link weights, `c`, the gather's input, each
+    /// patch's own weights for `δ` (bindings 0, 1, 2, 5, 9, 10).
+    buffers: [glow::Buffer; 6],
     n: usize,
     m: usize,
 }
@@ -48,12 +48,19 @@ impl GlNearField {
         )?;
         let n = w.starts.len() - 1;
         let weights: Vec<f32> = w.weights.iter().flatten().copied().collect();
+        // Zeros for a bake without far weights: δ = 0.
+        let own: Vec<f32> = if w.own.is_empty() {
+            vec![0.0; SAMPLES_PER_PATCH * n]
+        } else {
+            w.own.iter().flatten().copied().collect()
+        };
         let buffers = [
             storage_buffer(gl, bytes_of(&w.starts), glow::STATIC_DRAW)?,
             storage_buffer(gl, bytes_of(&w.patch), glow::STATIC_DRAW)?,
             storage_buffer(gl, bytes_of(&weights), glow::STATIC_DRAW)?,
             storage_buffer(gl, &vec![0u8; 12 * n], glow::DYNAMIC_COPY)?,
             storage_buffer(gl, &vec![0u8; 12 * n], glow::DYNAMIC_COPY)?,
+            storage_buffer(gl, bytes_of(&own), glow::STATIC_DRAW)?,
         ];
         super::check(gl, "uploading the near-field correction")?;
         Ok(Some(GlNearField {
@@ -69,7 +76,7 @@ impl GlNearField {
         self.buffers[3]
     }
 
-    /// What the gather reads: `B0 + ρ ∘ c` (3 n, channel-major).
+    /// What the gather reads: `B0 + δ + ρ ∘ c` (3 n, channel-major).
     pub fn gather_input(&self) -> glow::Buffer {
         self.buffers[4]
     }
@@ -79,7 +86,7 @@ impl GlNearField {
         self.m
     }
 
-    /// Dispatches stage 0 (`c`, `B0 += ρ ∘ c`, tile flags) or stage 1
+    /// Dispatches stage 0 (`c`, the input `B0 + δ + ρ ∘ c`, tile flags) or stage 1
     /// (`H += c`), with a barrier before it.
     pub fn dispatch(&self, gl: &glow::Context, stage: u32, io: &NearFieldInputs) {
         // SAFETY: binds, uniforms and a dispatch on the current context;
@@ -99,6 +106,7 @@ impl GlNearField {
             gl.bind_buffer_base(b, 7, Some(io.active));
             gl.bind_buffer_base(b, 8, Some(io.h));
             gl.bind_buffer_base(b, 9, Some(self.buffers[4]));
+            gl.bind_buffer_base(b, 10, Some(self.buffers[5]));
             let loc = |name: &str| gl.get_uniform_location(self.program, name);
             gl.uniform_1_u32(loc("n").as_ref(), self.n as u32);
             gl.uniform_1_u32(loc("samples").as_ref(), self.m as u32);

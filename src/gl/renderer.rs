@@ -443,6 +443,15 @@ impl GlRenderer {
         let nf = self.near.as_ref()?;
         Some(split(read_floats(gl, nf.c_buffer(), 3 * self.n), self.n))
     }
+    /// The gather's input `B0 + δ + ρ ∘ c` of the last frame, when the
+    /// bake has a near-field correction (read back).
+    pub fn near_field_input(&self, gl: &glow::Context) -> Option<[Vec<f32>; 3]> {
+        let nf = self.near.as_ref()?;
+        Some(split(
+            read_floats(gl, nf.gather_input(), 3 * self.n),
+            self.n,
+        ))
+    }
     /// `D` at each lit point of the last frame (three channels of `n ×`
     /// points, patch-major; read back).
     pub fn d_points(&self, gl: &glow::Context) -> ([Vec<f32>; 3], usize) {

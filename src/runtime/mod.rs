@@ -9,12 +9,13 @@
 //! 2. `B0 = ρ ∘ D + E`, `E` with each emissive material's run-time scale
 //!    ([`emission`]);
 //! 3. `H = T̃ · B0` straight from the compressed matrix ([`gather`]); with
-//!    the bake's near-field correction `c` from the exitance at the lit
-//!    sample points, `H = T̃ · (B0 + ρ ∘ c) + c` ([`near_field`]).
+//!    the bake's near-field correction `c` (and each patch's far-field
+//!    exitance `B0 + δ`) from the exitance at the lit sample points,
+//!    `H = T̃ · (B0 + δ + ρ ∘ c) + c` ([`near_field`]).
 //!
 //! **What a frame skips.** The products are kept per light and for the
-//! emission: `H = T̃ E + Σ_l (T̃ (ρ ∘ D_l + ρ ∘ c_l) + c_l)`, `c_l` the
-//! near-field correction of light `l`, each term the gather of its own
+//! emission: `H = T̃ E + Σ_l (T̃ (ρ ∘ D_l + δ_l + ρ ∘ c_l) + c_l)`, `c_l`
+//! and `δ_l` the near-field correction of light `l`, each term the gather of its own
 //! `B0` over that term's non-zero columns only. A frame recomputes the
 //! terms whose light (or emission scales) changed — so moving one spot
 //! light costs one direct pass for that light and one gather over the
@@ -42,7 +43,7 @@ use crate::core::scene::Scene;
 use crate::core::scene_config::Light;
 use emission::Emission;
 use gather::{ActiveColumns, CompressedGather, GatherStats};
-use near_field::NearFieldWeights;
+use near_field::{NearFieldWeights, NearTerms};
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -210,9 +211,10 @@ impl Runtime {
         self.corrected_product(b0, self.near_correction(d_points).as_ref())
     }
 
-    /// The near-field correction `c` of a term whose direct light at the
-    /// lit points is `d_points` (`None` when the bake has none).
-    pub fn near_correction(&self, d_points: &[Vec<f32>; 3]) -> Option<[Vec<f32>; 3]> {
+    /// The near-field correction (`c` and `δ`) of a term whose direct
+    /// light at the lit points is `d_points` (`None` when the bake has
+    /// none).
+    pub fn near_correction(&self, d_points: &[Vec<f32>; 3]) -> Option<NearTerms> {
         if self.near.is_empty() {
             return None;
         }
@@ -220,26 +222,18 @@ impl Runtime {
         Some(self.near.correction(&at_points))
     }
 
-    /// `T̃ · b0`, or with a correction `c`, `T̃ · (b0 + ρ ∘ c) + c`.
+    /// `T̃ · b0`, or with a correction, `T̃ · (b0 + δ + ρ ∘ c) + c`.
     pub fn corrected_product(
         &self,
         b0: &[Vec<f32>; 3],
-        c: Option<&[Vec<f32>; 3]>,
+        near: Option<&NearTerms>,
     ) -> ([Vec<f32>; 3], GatherStats, usize) {
-        let Some(c) = c else {
+        let Some(near) = near else {
             return self.product(b0);
         };
-        let b: [Vec<f32>; 3] = std::array::from_fn(|ch| {
-            b0[ch]
-                .iter()
-                .zip(&c[ch])
-                .zip(&self.baked.patches)
-                .map(|((&b, &cv), p)| b + p.albedo[ch] * cv)
-                .collect()
-        });
-        let (mut h, g, active) = self.product(&b);
-        for ch in 0..3 {
-            for (hv, cv) in h[ch].iter_mut().zip(&c[ch]) {
+        let (mut h, g, active) = self.product(&near.gather_input(b0, &self.baked.patches));
+        for (hc, cc) in h.iter_mut().zip(&near.c) {
+            for (hv, cv) in hc.iter_mut().zip(cc) {
                 *hv += cv;
             }
         }

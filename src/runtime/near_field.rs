@@ -1,9 +1,13 @@
 //! The near-field correction at run time ([`crate::bakefile::near_field`]
 //! defines it): `c = W · b`, with `b_jg = ρ_j D_jg` the exitance at patch
 //! `j`'s lit sample points and `W` the bake's cell counts turned into
-//! weights that sum to zero per link; then `H = T̃ · (B0 + ρ ∘ c) + c`.
-//! The CPU reference of `glsl/near_field.comp`.
+//! weights that sum to zero per link; `δ_j = Σ_g e_jg b_jg`, how the
+//! receivers without a stored link see each patch differently from its
+//! area shares (weights `e`, far weights less shares, summing to zero); then
+//! `H = T̃ · (B0 + δ + ρ ∘ c) + c`. The CPU reference of
+//! `glsl/near_field.comp`.
 
+use crate::bakefile::baked::BakedPatch;
 use crate::bakefile::near_field::NearField;
 use crate::bakefile::surface::{PatchSamples, SAMPLES_PER_PATCH};
 use rayon::prelude::*;
@@ -22,6 +26,37 @@ pub struct NearFieldWeights {
     /// (slots `m..16` are 0), `(c_g − C s_g) / rays` over the cells merged
     /// into point `g`.
     pub weights: Vec<[f32; SAMPLES_PER_PATCH]>,
+    /// Per patch (empty when the bake stores no far weights): the weight
+    /// of each of its `m` lit points in `δ`, its far weights less its area
+    /// shares, over the cells merged into the point (slots `m..16` are 0).
+    pub own: Vec<[f32; SAMPLES_PER_PATCH]>,
+}
+
+/// One term's near-field correction.
+#[derive(Clone, Debug)]
+pub struct NearTerms {
+    /// `c`, irradiance (three channels, `n` each): added to `H` after the
+    /// gather, and as `ρ ∘ c` to its input.
+    pub c: [Vec<f32>; 3],
+    /// `δ`, exitance (three channels, `n` each; zeros without far
+    /// weights): added to the gather's input.
+    pub delta: [Vec<f32>; 3],
+}
+
+impl NearTerms {
+    /// The gather's input `B0 + δ + ρ ∘ c` (`patches` in matrix order for
+    /// `ρ`), summed in this order in f32, as the shader does.
+    pub fn gather_input(&self, b0: &[Vec<f32>; 3], patches: &[BakedPatch]) -> [Vec<f32>; 3] {
+        std::array::from_fn(|ch| {
+            b0[ch]
+                .iter()
+                .zip(&self.delta[ch])
+                .zip(&self.c[ch])
+                .zip(patches)
+                .map(|(((&b, &d), &c), p)| b + d + p.albedo[ch] * c)
+                .collect()
+        })
+    }
 }
 
 impl NearFieldWeights {
@@ -43,24 +78,37 @@ impl NearFieldWeights {
             starts: nf.starts.clone(),
             patch: Vec::with_capacity(nf.links.len()),
             weights: Vec::with_capacity(nf.links.len()),
+            own: Vec::new(),
         };
         for l in &nf.links {
             let j = l.patch as usize;
             let total: f64 = l.counts.iter().map(|&v| v as f64).sum();
+            let q = nf.far_of(j);
             let mut w = [0.0f64; SAMPLES_PER_PATCH];
             for (k, &v) in l.counts.iter().enumerate() {
-                w[groups[j][k] as usize] += v as f64 - total * nf.shares[j][k] as f64;
+                w[groups[j][k] as usize] += v as f64 - total * q[k] as f64;
             }
             out.patch.push(l.patch);
             out.weights
                 .push(std::array::from_fn(|g| (w[g] / rays) as f32));
+        }
+        if !nf.far.is_empty() {
+            out.own = (0..n)
+                .map(|j| {
+                    let mut e = [0.0f64; SAMPLES_PER_PATCH];
+                    for (k, (&q, &s)) in nf.far[j].iter().zip(&nf.shares[j]).enumerate() {
+                        e[groups[j][k] as usize] += q as f64 - s as f64;
+                    }
+                    e.map(|v| v as f32)
+                })
+                .collect();
         }
         out
     }
 
     /// Whether the correction is identically zero.
     pub fn is_empty(&self) -> bool {
-        self.patch.is_empty()
+        self.patch.is_empty() && self.own.is_empty()
     }
 
     /// Links stored.
@@ -68,15 +116,24 @@ impl NearFieldWeights {
         self.patch.len()
     }
 
-    /// `c = W · b` (three channels, `n` each) from `b` (three channels,
-    /// `n × m` each: patch `j`'s lit point `g` at `j m + g`). Each receiver
-    /// sums its links in stored order in f32, as the shader does.
-    pub fn correction(&self, b: &[Vec<f32>; 3]) -> [Vec<f32>; 3] {
+    /// `c = W · b` and `δ` (module doc) from `b` (three channels, `n × m`
+    /// each: patch `j`'s lit point `g` at `j m + g`). Each receiver sums
+    /// its links in stored order in f32, as the shader does, and its own
+    /// points in order.
+    pub fn correction(&self, b: &[Vec<f32>; 3]) -> NearTerms {
         let n = self.starts.len() - 1;
         let m = self.m;
-        let rows: Vec<[f32; 3]> = (0..n)
+        let rows: Vec<([f32; 3], [f32; 3])> = (0..n)
             .into_par_iter()
             .map(|i| {
+                let mut delta = [0.0f32; 3];
+                if let Some(e) = self.own.get(i) {
+                    for (ch, d) in delta.iter_mut().enumerate() {
+                        for g in 0..m {
+                            *d += e[g] * b[ch][i * m + g];
+                        }
+                    }
+                }
                 let mut c = [0.0f32; 3];
                 for l in self.starts[i] as usize..self.starts[i + 1] as usize {
                     let base = self.patch[l] as usize * m;
@@ -89,9 +146,12 @@ impl NearFieldWeights {
                         *cc += s;
                     }
                 }
-                c
+                (c, delta)
             })
             .collect();
-        std::array::from_fn(|ch| rows.iter().map(|r| r[ch]).collect())
+        NearTerms {
+            c: std::array::from_fn(|ch| rows.iter().map(|r| r.0[ch]).collect()),
+            delta: std::array::from_fn(|ch| rows.iter().map(|r| r.1[ch]).collect()),
+        }
     }
 }
