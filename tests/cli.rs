@@ -323,6 +323,16 @@ fn bad_options_and_devices_are_refused() {
         e.contains("--near-field-rays") && e.contains("70000") && e.contains("65535"),
         "{e}"
     );
+    for bad in ["2", "-0.1", "nan"] {
+        let flag = format!("--near-field-min-form-factor={bad}");
+        let o = radiosity(&["bake", p, &flag]);
+        assert_eq!(o.status.code(), Some(1));
+        let e = stderr(&o);
+        assert!(
+            e.contains("--near-field-min-form-factor") && e.contains("0..=1"),
+            "{bad}: {e}"
+        );
+    }
     let o = radiosity(&["bake", p, "--device", "99"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("index 99"), "{}", stderr(&o));
