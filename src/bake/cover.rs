@@ -1,14 +1,14 @@
 //! Covered geometry (DESIGN.md bake step 2; the voxelizer's module doc,
 //! "Covered geometry"): the one rule for whether a point of a surface can
-//! be seen at all. A point is covered when the back of another surface lies
-//! within [`COVER_DISTANCE`] voxels in front of it along its normal, any
-//! surface within [`COVER_GAP`] voxels, or it is enclosed: every ray of a
-//! fixed fan around its normal meets a back face first, at any distance. A
-//! back face with a coincident front face (a two-sided surface modelled as
-//! two triangles) is no back. The voxelizer uses it for which pieces and
-//! how much of them a patch stands for, the rays form factors for which ray
-//! origins a partly covered piece casts from, the surface map for the
-//! patches' sample points.
+//! be seen at all. A point is covered when the first surface in front of it
+//! along its normal is the back of another surface within
+//! [`COVER_DISTANCE`] voxels, or any surface within [`COVER_GAP`] voxels, or
+//! it is enclosed: every ray of a fixed fan around its normal meets a back
+//! face first, at any distance. A back face with a coincident front face
+//! (a two-sided surface modelled as two triangles) is no back. The
+//! voxelizer uses it for which pieces and how much of them a patch stands
+//! for, the rays form factors for which ray origins a partly covered piece
+//! casts from, the surface map for the patches' sample points.
 
 use crate::core::bvh::Bvh;
 use crate::core::math::{dot, tangent_basis};
@@ -21,9 +21,9 @@ use crate::core::scene::Scene;
 /// which a coincident front face cancels a back face.
 pub const COVER_LIFT: f64 = 1e-3;
 
-/// A piece's point is covered when the back of another surface lies
-/// within this many voxel sizes in front of it, along its normal (module
-/// doc, "Covered geometry").
+/// A piece's point is covered when the first surface in front of it along
+/// its normal is the back of another surface within this many voxel sizes
+/// (module doc, "Covered geometry").
 pub const COVER_DISTANCE: f64 = 0.5;
 
 /// Rays of the enclosure test (module doc, "Covered geometry"): along the
@@ -39,6 +39,10 @@ pub const ENCLOSED_POLAR: f64 = std::f64::consts::FRAC_PI_3;
 
 /// Points tested per piece for covered geometry (module doc).
 pub const COVER_POINTS: usize = 16;
+
+/// Times the normal probe steps over the point's own triangle before it
+/// gives up (a grazing start meets it at most once or twice).
+const OWN_SKIPS: usize = 4;
 
 /// A piece's point is covered when any other surface, front or back, lies
 /// within this many voxel sizes in front of it (module doc).
@@ -79,23 +83,44 @@ impl<'a> Cover<'a> {
     }
 
     /// Whether the point `x` (world) of triangle `tri`, unit normal `n`, is
-    /// covered: the back of a surface within [`COVER_DISTANCE`] voxels in
-    /// front, any surface within [`COVER_GAP`], or enclosed.
+    /// covered: the first surface in front is the back of a surface within
+    /// [`COVER_DISTANCE`] voxels, or any surface within [`COVER_GAP`], or
+    /// the point is enclosed.
     pub fn covered(&self, x: [f64; 3], n: [f64; 3], tri: u32) -> bool {
         let (bvh, normals) = (self.bvh, self.normals);
         let o: [f64; 3] = std::array::from_fn(|q| x[q] + self.lift * n[q] - self.shift[q]);
         // Ignored: the piece's own triangle, and front faces (surfaces
         // facing this point) beyond the gap.
+        // The first surface along the normal decides: its back within the
+        // cover distance covers, a front face (or a back with a coincident
+        // front) only within the gap. A back face behind a front face does
+        // not: the point faces open space up to that front face (a floor
+        // under a vault whose top lies within half a voxel; counting it, at
+        // 9 m voxels 7 % of Sponza's form-factor rays met such dropped
+        // pieces and their light was lost). The point's own triangle, met
+        // at a grazing start, is stepped over.
         let (cover, gap) = (self.cover, self.gap);
-        let near = bvh
-            .any_hit(o, n.map(|v| v * cover), |k, t| {
-                let hit = bvh.order[k as usize];
-                hit == tri
-                    || (dot(normals[hit as usize], n) < 0.0 && t * cover > gap)
-                    || (dot(normals[hit as usize], n) > 0.0
-                        && self.front_at(o, n, t * cover, tri).is_some())
-            })
-            .is_some();
+        let mut start = 0.0f64;
+        let mut near = false;
+        for _ in 0..OWN_SKIPS {
+            let len = cover - start;
+            if len <= 0.0 {
+                break;
+            }
+            let from: [f64; 3] = std::array::from_fn(|q| o[q] + start * n[q]);
+            let Some((leaf, t)) = bvh.closest_hit(from, n.map(|v| v * len)) else {
+                break;
+            };
+            let d = start + t * len;
+            let hit = bvh.order[leaf as usize];
+            if hit == tri {
+                start = d + 1e-9 * cover;
+                continue;
+            }
+            let back = dot(normals[hit as usize], n) > 0.0 && self.front_at(o, n, d, tri).is_none();
+            near = back || d <= gap;
+            break;
+        }
         near || self.enclosed(o, n, tri)
     }
 

@@ -63,10 +63,12 @@
 //! (`cut_pieces`).
 //!
 //! **Covered geometry.** A piece's point is covered when, along its normal,
-//! the *back* of another surface lies within [`COVER_DISTANCE`] voxels (the
-//! point is inside a solid or behind a one-sided surface: the floor under a
-//! box without a bottom face, the ceiling above a one-sided light panel,
-//! faces buried in a wall), or any surface lies within [`COVER_GAP`] voxels
+//! the first surface is the *back* of another surface within
+//! [`COVER_DISTANCE`] voxels (the point is inside a solid or behind a
+//! one-sided surface: the floor under a box without a bottom face, the
+//! ceiling above a one-sided light panel, faces buried in a wall; a back
+//! face behind a front face does not count, since the point faces open
+//! space up to that front face), or any surface lies within [`COVER_GAP`] voxels
 //! (a gap too thin to pass light at this resolution: the top of a
 //! two-sided panel 1 cm under the ceiling), or the point is enclosed: every
 //! ray of a fixed fan ([`ENCLOSED_RAYS`]) meets the back of a surface first,
