@@ -49,6 +49,10 @@ const SHARE_POINTS: usize = 1024;
 /// Most rays per patch: the counts are `u16`.
 pub const MAX_RAYS: u32 = 65_535;
 
+/// Receivers traced together before their dropped links are folded into
+/// the far weights (memory: see `build`).
+const RECEIVERS_PER_CHUNK: usize = 512;
+
 /// What the stage did, for the bake report.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct NearFieldStats {
@@ -146,74 +150,81 @@ pub fn build(
             s.map(|v| v as f32)
         })
         .collect();
-    // Per receiver: its stored links, and its dropped links' rays weighted
-    // by its area per ray traced (for the far weights).
-    type Row = (Vec<NearLink>, Vec<(u32, [f64; SAMPLES_PER_PATCH])>);
-    let rows: Vec<Row> = (0..n)
-        .into_par_iter()
-        .map(|i| {
-            let v = vox_of[i];
-            if v == usize::MAX {
-                return Row::default();
+    // Per receiver: its stored links, its area per ray traced, and its
+    // dropped links' ray counts (for the far weights).
+    type Row = (Vec<NearLink>, f64, Vec<(u32, [u16; SAMPLES_PER_PATCH])>);
+    let row_of = |i: usize| -> Row {
+        let v = vox_of[i];
+        if v == usize::MAX {
+            return Row::default();
+        }
+        let origins = Origins::of_patch(v, &by_patch[v], &geo, vox, 0x5851_f42d_4c95_7f2d);
+        if origins.is_empty() {
+            return Row::default();
+        }
+        let mut links: BTreeMap<u32, [u32; SAMPLES_PER_PATCH]> = BTreeMap::new();
+        let (mut f, mut covered) = (0usize, 0u32);
+        for k in 0..rays as usize {
+            let (x, nrm, partial, r) = origins.point(k, rays as usize, &mut f);
+            if partial.is_some_and(|tri| cover.covered(x, nrm, tri)) {
+                covered += 1;
+                continue;
             }
-            let origins = Origins::of_patch(v, &by_patch[v], &geo, vox, 0x5851_f42d_4c95_7f2d);
-            if origins.is_empty() {
-                return Row::default();
+            let Hit::Owned { patch, y } = tracer.trace(x, nrm, cosine_direction(nrm, r[2], r[3]))
+            else {
+                continue;
+            };
+            let Some(j) = patch_index_of[patch as usize] else {
+                continue;
+            };
+            if j as usize == i {
+                continue;
             }
-            let mut links: BTreeMap<u32, [u32; SAMPLES_PER_PATCH]> = BTreeMap::new();
-            let (mut f, mut covered) = (0usize, 0u32);
-            for k in 0..rays as usize {
-                let (x, nrm, partial, r) = origins.point(k, rays as usize, &mut f);
-                if partial.is_some_and(|tri| cover.covered(x, nrm, tri)) {
-                    covered += 1;
-                    continue;
-                }
-                let Hit::Owned { patch, y } =
-                    tracer.trace(x, nrm, cosine_direction(nrm, r[2], r[3]))
-                else {
-                    continue;
-                };
-                let Some(j) = patch_index_of[patch as usize] else {
-                    continue;
-                };
-                if j as usize == i {
-                    continue;
-                }
-                let cell = nearest(j as usize, y);
-                links.entry(j).or_insert([0; SAMPLES_PER_PATCH])[cell] += 1;
-            }
-            // Counts per ray cast, in units of `rays` (rounded down, so a
-            // receiver's counts never exceed `rays`).
-            let done = rays.saturating_sub(covered);
-            if done == 0 {
-                return Row::default();
-            }
-            let to_rays = rays as f64 / done as f64;
-            let per_ray = vox.patches[v].area / done as f64;
-            let min = min_form_factor * rays as f64;
-            let mut row = Row::default();
-            for (patch, c) in links {
-                let counts: [u16; SAMPLES_PER_PATCH] =
-                    std::array::from_fn(|k| (c[k] as f64 * to_rays).floor() as u16);
-                if counts.iter().map(|&v| v as f64).sum::<f64>() >= min {
-                    row.0.push(NearLink { patch, counts });
-                } else {
-                    row.1.push((patch, c.map(|v| v as f64 * per_ray)));
-                }
-            }
-            row
-        })
-        .collect();
-    // Far weights: the dropped rays per neighbour cell, normalised; a patch
-    // none of them meets takes its area shares.
-    let mut far_sum = vec![[0.0f64; SAMPLES_PER_PATCH]; n];
-    for (_, dropped) in &rows {
-        for (j, w) in dropped {
-            for (f, v) in far_sum[*j as usize].iter_mut().zip(w) {
-                *f += v;
+            let cell = nearest(j as usize, y);
+            links.entry(j).or_insert([0; SAMPLES_PER_PATCH])[cell] += 1;
+        }
+        // Counts per ray cast, in units of `rays` (rounded down, so a
+        // receiver's counts never exceed `rays`).
+        let done = rays.saturating_sub(covered);
+        if done == 0 {
+            return Row::default();
+        }
+        let to_rays = rays as f64 / done as f64;
+        let mut row: Row = (Vec::new(), vox.patches[v].area / done as f64, Vec::new());
+        let min = min_form_factor * rays as f64;
+        for (patch, c) in links {
+            let counts: [u16; SAMPLES_PER_PATCH] =
+                std::array::from_fn(|k| (c[k] as f64 * to_rays).floor() as u16);
+            if counts.iter().map(|&v| v as f64).sum::<f64>() >= min {
+                row.0.push(NearLink { patch, counts });
+            } else {
+                // Raw counts: at most `rays` ≤ MAX_RAYS each.
+                row.2.push((patch, c.map(|v| v as u16)));
             }
         }
+        row
+    };
+    // Receivers in chunks, so that the dropped links' counts (up to one
+    // list entry per neighbour a receiver's rays meet: thousands at large
+    // patch counts) are folded into the far sums and freed as they come.
+    let mut stored: Vec<Vec<NearLink>> = Vec::with_capacity(n);
+    let mut far_sum = vec![[0.0f64; SAMPLES_PER_PATCH]; n];
+    for first in (0..n).step_by(RECEIVERS_PER_CHUNK) {
+        let chunk: Vec<Row> = (first..(first + RECEIVERS_PER_CHUNK).min(n))
+            .into_par_iter()
+            .map(row_of)
+            .collect();
+        for (links, per_ray, dropped) in chunk {
+            for (j, c) in dropped {
+                for (f, &v) in far_sum[j as usize].iter_mut().zip(&c) {
+                    *f += v as f64 * per_ray;
+                }
+            }
+            stored.push(links);
+        }
     }
+    // Far weights: the dropped rays per neighbour cell, normalised; a patch
+    // none of them meets takes its area shares.
     let far: Vec<[f32; SAMPLES_PER_PATCH]> = far_sum
         .iter()
         .zip(&shares)
@@ -234,7 +245,7 @@ pub fn build(
         far,
     };
     nf.starts.push(0);
-    for (r, _) in rows {
+    for r in stored {
         nf.links.extend(r);
         nf.starts.push(nf.links.len() as u32);
     }
