@@ -15,8 +15,8 @@
 //!
 //! **What a frame skips.** The products are kept per light and for the
 //! emission: `H = T̃ E + Σ_l (T̃ (ρ ∘ D_l + δ_l + ρ ∘ c_l) + c_l)`, `c_l`
-//! and `δ_l` the near-field correction of light `l`, each term the gather of its own
-//! `B0` over that term's non-zero columns only. A frame recomputes the
+//! and `δ_l` the near-field correction of light `l`, each term the gather
+//! of its own `B0` over that term's non-zero columns only. A frame recomputes the
 //! terms whose light (or emission scales) changed — so moving one spot
 //! light costs one direct pass for that light and one gather over the
 //! columns it lights — and sums; when nothing changed, nothing is

@@ -23,8 +23,9 @@ pub struct NearFieldWeights {
     /// Per link: the neighbour (matrix order).
     pub patch: Vec<u32>,
     /// Per link: the weight of each of the neighbour's `m` lit points
-    /// (slots `m..16` are 0), `(c_g − C s_g) / rays` over the cells merged
-    /// into point `g`.
+    /// (slots `m..16` are 0), `(c_g − C q_g) / rays` (`q` the far weights,
+    /// the area shares for a file without them) over the cells merged into
+    /// point `g`.
     pub weights: Vec<[f32; SAMPLES_PER_PATCH]>,
     /// Per patch (empty when the bake stores no far weights): the weight
     /// of each of its `m` lit points in `δ`, its far weights less its area
