@@ -6,10 +6,9 @@
 mod common;
 
 use common::{quad, write_quads, Quad};
+use radiosity::bake;
 use radiosity::bake::voxelize::Resolution;
-use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
 use radiosity::bakefile::baked::Baked;
-use radiosity::bakefile::codec::CodecKind;
 use radiosity::core::scene;
 use radiosity::core::scene_config::{self, Light};
 use radiosity::runtime::{Runtime, RuntimeOptions};
@@ -67,16 +66,11 @@ fn louvred_yard() -> Vec<Quad> {
 }
 
 fn bake_with(obj: &Path, tag: &str, min_form_factor: f64) -> (Baked, bake::BakeOutput, PathBuf) {
-    let mut c = BakeConfig::new(obj.to_path_buf(), Resolution::VoxelSize(3.0));
-    c.compute = ComputeChoice::OpenCl(Default::default());
-    c.codec = CodecChoice::Fixed(CodecKind::default());
-    c.error_lights = 0;
+    let mut c = common::bake_config(obj, Resolution::VoxelSize(3.0));
     c.near_field_min_form_factor = min_form_factor;
     let out = obj.with_file_name(format!("{tag}.rad"));
-    c.output = Some(out.clone());
-    common::gpu();
-    let report = bake::run(&c, &mut |_| {}).expect("bake");
-    (Baked::load(&out).unwrap(), report, out)
+    let (baked, report) = common::bake_to(c, &out);
+    (baked, report, out)
 }
 
 /// `H` under `sun` with the bake's correction, and its area-weighted total

@@ -9,9 +9,6 @@ mod common;
 
 use common::{quad, write_quads, Quad};
 use radiosity::bake::voxelize::Resolution;
-use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
-use radiosity::bakefile::baked::Baked;
-use radiosity::bakefile::codec::CodecKind;
 use radiosity::core::scene;
 use radiosity::core::scene_config::{Camera, Light, SceneConfig};
 use radiosity::runtime::render::{render, View};
@@ -114,19 +111,9 @@ struct Lit {
 
 fn bake_and_light(s: f64, tag: &str) -> Lit {
     let obj = write_quads(tag, &yard(s));
-    let mut c = BakeConfig::new(obj.clone(), Resolution::VoxelSize(0.25 * s));
-    c.compute = ComputeChoice::OpenCl(Default::default());
-    c.codec = CodecChoice::Fixed(CodecKind::default());
-    c.error_lights = 0;
-    let out = obj.with_extension("rad");
-    c.output = Some(out.clone());
-    common::gpu();
-    bake::run(&c, &mut |_| {}).expect("bake");
-    let mut rt = Runtime::new(
-        Baked::load(&out).unwrap(),
-        scene::load(&obj).unwrap(),
-        RuntimeOptions::default(),
-    );
+    let c = common::bake_config(&obj, Resolution::VoxelSize(0.25 * s));
+    let (baked, _) = common::bake_to(c, &obj.with_extension("rad"));
+    let mut rt = Runtime::new(baked, scene::load(&obj).unwrap(), RuntimeOptions::default());
     let sun = Light::Directional {
         direction: [-0.4, -1.0, 0.3],
         irradiance: [10.0, 9.0, 8.0],

@@ -3,9 +3,13 @@
 
 #![allow(dead_code)]
 
+use radiosity::bake::voxelize::Resolution;
+use radiosity::bake::{self, BakeConfig, BakeOutput, CodecChoice, ComputeChoice};
+use radiosity::bakefile::baked::Baked;
+use radiosity::bakefile::codec::CodecKind;
 use radiosity::core::compute::{DeviceSelection, Gpu};
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A fresh, empty directory under the system temp dir, unique per call.
@@ -100,4 +104,22 @@ pub fn sponza() -> PathBuf {
 /// A bundled scene's OBJ path.
 pub fn bundled(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("scenes/{name}/{name}.obj"))
+}
+
+/// The tests' bake options for `obj`: the OpenCL device, the default codec
+/// fixed (no search), no compression-error lights.
+pub fn bake_config(obj: &Path, resolution: Resolution) -> BakeConfig {
+    let mut c = BakeConfig::new(obj.to_path_buf(), resolution);
+    c.compute = ComputeChoice::OpenCl(Default::default());
+    c.codec = CodecChoice::Fixed(CodecKind::default());
+    c.error_lights = 0;
+    c
+}
+
+/// Bakes `config` to `out` and loads the file back.
+pub fn bake_to(mut config: BakeConfig, out: &Path) -> (Baked, BakeOutput) {
+    config.output = Some(out.to_path_buf());
+    gpu();
+    let report = bake::run(&config, &mut |_| {}).expect("bake");
+    (Baked::load(out).unwrap(), report)
 }
