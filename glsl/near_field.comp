@@ -4,8 +4,9 @@
 // stage 0, one invocation per receiver i: c_i = sum over its links l of
 // sum_g w[l][g] * rho_p * D_p,g (p the link's neighbour, g its lit points,
 // D at the points from direct.comp), summed per link in f32 as the CPU
-// does; delta_i = sum_g own[i][g] * rho_i * D_i,g (its exitance as the far
-// field sees it, less the plain mean); then the gather's input
+// does; delta_i = sum_g own[i][g] * rho_i * D_i,g (how the receivers
+// without a stored link see patch i, less its area shares); then the
+// gather's input
 // B0_i + delta_i + rho_i c_i (B0 itself stays as the direct pass wrote
 // it), and the tile column of a non-zero one is flagged for the gather.
 // stage 1, after the gather: H_i += c_i.

@@ -128,20 +128,10 @@ impl BakeConfig {
 
     /// Checks option values that do not depend on the scene.
     pub fn validate(&self) -> Result<(), BakeError> {
-        if self.near_field_rays > crate::bake::near_field::MAX_RAYS {
-            return Err(BakeError::InvalidOption {
-                option: "near-field rays per patch",
-                value: self.near_field_rays.to_string(),
-                expected: format!("0..={}", crate::bake::near_field::MAX_RAYS),
-            });
-        }
-        if !(0.0..=1.0).contains(&self.near_field_min_form_factor) {
-            return Err(BakeError::InvalidOption {
-                option: "near-field minimum form factor",
-                value: self.near_field_min_form_factor.to_string(),
-                expected: "a number in 0..=1".into(),
-            });
-        }
+        crate::bake::near_field::check_options(
+            self.near_field_rays,
+            self.near_field_min_form_factor,
+        )?;
         match self.resolution {
             Resolution::VoxelSize(s) if !(s.is_finite() && s > 0.0) => {
                 return Err(BakeError::InvalidOption {

@@ -87,41 +87,40 @@ impl<'a> Cover<'a> {
     /// [`COVER_DISTANCE`] voxels, or any surface within [`COVER_GAP`], or
     /// the point is enclosed.
     pub fn covered(&self, x: [f64; 3], n: [f64; 3], tri: u32) -> bool {
-        let (bvh, normals) = (self.bvh, self.normals);
         let o: [f64; 3] = std::array::from_fn(|q| x[q] + self.lift * n[q] - self.shift[q]);
-        // Ignored: the piece's own triangle, and front faces (surfaces
-        // facing this point) beyond the gap.
-        // The first surface along the normal decides: its back within the
-        // cover distance covers, a front face (or a back with a coincident
-        // front) only within the gap. A back face behind a front face does
-        // not: the point faces open space up to that front face (a floor
-        // under a vault whose top lies within half a voxel; counting it, at
-        // 9 m voxels 7 % of Sponza's form-factor rays met such dropped
-        // pieces and their light was lost). The point's own triangle, met
-        // at a grazing start, is stepped over.
-        let (cover, gap) = (self.cover, self.gap);
+        self.first_surface_covers(o, n, tri) || self.enclosed(o, n, tri)
+    }
+
+    /// The first surface along the normal from `o` (shifted) decides: its
+    /// back within the cover distance covers, a front face (or a back with
+    /// a coincident front) only within the gap. A back face behind a front
+    /// face does not: the point faces open space up to that front face (a
+    /// floor under a slab whose top lies within half a voxel; counting it,
+    /// at 9 m voxels 7 % of Sponza's form-factor rays met pieces dropped
+    /// that way and their light was lost). The point's own triangle, met at
+    /// a grazing start, is stepped over.
+    fn first_surface_covers(&self, o: [f64; 3], n: [f64; 3], tri: u32) -> bool {
+        let (bvh, normals) = (self.bvh, self.normals);
         let mut start = 0.0f64;
-        let mut near = false;
         for _ in 0..OWN_SKIPS {
-            let len = cover - start;
+            let len = self.cover - start;
             if len <= 0.0 {
-                break;
+                return false;
             }
             let from: [f64; 3] = std::array::from_fn(|q| o[q] + start * n[q]);
             let Some((leaf, t)) = bvh.closest_hit(from, n.map(|v| v * len)) else {
-                break;
+                return false;
             };
             let d = start + t * len;
             let hit = bvh.order[leaf as usize];
             if hit == tri {
-                start = d + 1e-9 * cover;
+                start = d + 1e-9 * self.cover;
                 continue;
             }
             let back = dot(normals[hit as usize], n) > 0.0 && self.front_at(o, n, d, tri).is_none();
-            near = back || d <= gap;
-            break;
+            return back || d <= self.gap;
         }
-        near || self.enclosed(o, n, tri)
+        false
     }
 
     /// A surface facing back along the unit direction `d` from `o`

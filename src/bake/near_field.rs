@@ -65,6 +65,27 @@ pub struct NearFieldStats {
     pub seconds: f64,
 }
 
+/// Checks the stage's options: `rays` per patch at most [`MAX_RAYS`], the
+/// minimum form factor of a stored link in 0..=1 (the bake's config checks
+/// them with this before any work).
+pub fn check_options(rays: u32, min_form_factor: f64) -> Result<(), BakeError> {
+    if rays > MAX_RAYS {
+        return Err(BakeError::InvalidOption {
+            option: "near-field rays per patch",
+            value: rays.to_string(),
+            expected: format!("0..={MAX_RAYS}"),
+        });
+    }
+    if !(0.0..=1.0).contains(&min_form_factor) {
+        return Err(BakeError::InvalidOption {
+            option: "near-field minimum form factor",
+            value: min_form_factor.to_string(),
+            expected: "a number in 0..=1".into(),
+        });
+    }
+    Ok(())
+}
+
 /// The correction for the `n` patches in matrix order (`patch_index_of`:
 /// voxelization patch → matrix patch), whose sample points are `samples`
 /// (matrix order); `rays` per patch (0: none), links with a measured form
@@ -82,20 +103,7 @@ pub fn build(
     if rays == 0 || n == 0 {
         return Ok((NearField::none(), NearFieldStats::default()));
     }
-    if rays > MAX_RAYS {
-        return Err(BakeError::InvalidOption {
-            option: "near-field rays per patch",
-            value: rays.to_string(),
-            expected: format!("0..={MAX_RAYS}"),
-        });
-    }
-    if !(0.0..=1.0).contains(&min_form_factor) {
-        return Err(BakeError::InvalidOption {
-            option: "near-field minimum form factor",
-            value: min_form_factor.to_string(),
-            expected: "a number in 0..=1".into(),
-        });
-    }
+    check_options(rays, min_form_factor)?;
     let cast = rays;
     let geo = pieces::geometry(scene, vox);
     let by_patch = pieces::by_patch(vox);
