@@ -4,7 +4,9 @@
 
 use radiosity::bake::encode;
 use radiosity::bake::reorder;
-use radiosity::bakefile::codec::{CodecKind, Encoded, SparseValues, LOG_RANGE_AUTO};
+use radiosity::bakefile::codec::{
+    CodecKind, DenseFormat, Encoded, SparseValues, TileIndex, LOG_RANGE_AUTO,
+};
 use radiosity::runtime::gather::{dense_product, simd_available, ActiveColumns, CompressedGather};
 use radiosity::synthetic;
 
@@ -283,6 +285,124 @@ fn tiny_matrices_gather_alike_on_both_paths() {
                         h[c][i]
                     );
                 }
+            }
+        }
+    }
+}
+
+/// `e` (BC1, tiles of 32) re-laid with tiles of 64, an edge the reader
+/// accepts (up to `MAX_TILE`) though the encoder writes 32: each new tile
+/// holds its four old tiles' blocks, all-zero blocks (which decode to 0)
+/// where an old tile was not stored, and is stored when any of them was.
+fn retiled_64(e: &Encoded) -> Encoded {
+    assert_eq!(e.format, DenseFormat::Bc1);
+    let (old, new) = (e.index.tile, 64);
+    assert_eq!(old, 32);
+    let image = e.image_size;
+    let tps = image.div_ceil(new);
+    let slot = |tr: usize, tc: usize| {
+        (e.index.row_start[tr] as usize..e.index.row_start[tr + 1] as usize)
+            .find(|&s| e.index.cols[s] as usize == tc)
+    };
+    let mut out = e.clone();
+    out.dense.clear();
+    out.index = TileIndex {
+        tile: new,
+        tiles_per_side: tps,
+        row_start: vec![0],
+        cols: Vec::new(),
+        offsets: Vec::new(),
+    };
+    for tr in 0..tps {
+        for tc in 0..tps {
+            let subs: Vec<Vec<Option<usize>>> = (0..2)
+                .map(|a| {
+                    (0..2)
+                        .map(|b| {
+                            let (r, c) = (2 * tr + a, 2 * tc + b);
+                            (r < e.index.tiles_per_side && c < e.index.tiles_per_side)
+                                .then(|| slot(r, c))
+                                .flatten()
+                        })
+                        .collect()
+                })
+                .collect();
+            if subs.iter().flatten().all(Option::is_none) {
+                continue;
+            }
+            out.index.cols.push(tc as u16);
+            out.index.offsets.push(out.dense.len() as u32);
+            let (h, w) = (new.min(image - tr * new), new.min(image - tc * new));
+            for br in 0..h / 4 {
+                for bc in 0..w / 4 {
+                    let (a, b) = (br / 8, bc / 8);
+                    match subs[a][b] {
+                        None => out.dense.extend_from_slice(&[0; 8]),
+                        Some(s) => {
+                            let old_w = old.min(image - (2 * tc + b) * old);
+                            let k = (br % 8) * (old_w / 4) + bc % 8;
+                            let at = e.index.offsets[s] as usize + 8 * k;
+                            out.dense.extend_from_slice(&e.dense[at..at + 8]);
+                        }
+                    }
+                }
+            }
+        }
+        out.index.row_start.push(out.index.cols.len() as u32);
+    }
+    out
+}
+
+/// A bake file may hold tiles larger than the encoder's 32 (the reader
+/// accepts edges up to 256): the gather must then give the same `H` as
+/// with the encoder's tiles, on every path and with skipping, rather than
+/// run a vector kernel sized for 32-row tiles on them. A block-sparse
+/// matrix (zero tiles) so that the re-laid tiles mix stored and missing
+/// parts; n not a multiple of 64, so that the last row of tiles is short.
+#[test]
+fn tiles_larger_than_the_encoders_gather_the_same() {
+    let (mut t, b0, n) = problem(13, 3, false);
+    // Zero the coupling between the first and second half (block-sparse).
+    let half = n / 2;
+    for c in &mut t {
+        for i in 0..n {
+            for j in 0..n {
+                if (i < half) != (j < half) {
+                    c[i * n + j] = 0.0;
+                }
+            }
+        }
+    }
+    assert!(n % 64 != 0, "{n}: a short last row of 64-tiles");
+    let e = encode::encode(CodecKind::default(), refs(&t), n).unwrap();
+    let tps = e.index.tiles_per_side;
+    assert!(
+        e.index.cols.len() < tps * tps,
+        "no zero tile: the test needs some"
+    );
+    let big = retiled_64(&e);
+    assert!(big.index.cols.len() < big.index.tiles_per_side.pow(2));
+    let reference = CompressedGather::new(&e, false);
+    let b = refs(&b0);
+    let mut want: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    reference.gather(b, &ActiveColumns::of(b, 32, true), &mut want);
+    for simd in [false, true] {
+        let g = CompressedGather::new(&big, simd);
+        let (mut got, mut skipped) = (want.clone(), want.clone());
+        g.gather(b, &ActiveColumns::of(b, 64, true), &mut got);
+        g.gather(b, &ActiveColumns::of(b, 64, false), &mut skipped);
+        let tol = bound(n, false);
+        for c in 0..3 {
+            for i in 0..n {
+                let rel =
+                    (got[c][i] as f64 - want[c][i] as f64).abs() / (want[c][i] as f64).max(1e-30);
+                assert!(
+                    rel <= tol,
+                    "simd {simd}: H[{c}][{i}] {} with tiles of 64, {} of 32",
+                    got[c][i],
+                    want[c][i]
+                );
+                assert_eq!(got[c][i].to_bits(), skipped[c][i].to_bits());
             }
         }
     }

@@ -325,14 +325,25 @@ impl CompressedGather {
             }
         }
         // The sparse part re-laid by tile (row of tiles, then tile column,
-        // then group of 4 columns, then row and column), so that a skipped
+        // then group of 4 columns, then column and row), so that a skipped
         // tile or column group skips its entries' memory too (the tile
         // edge is a multiple of 4, so groups do not straddle tiles).
+        // Column before row: consecutive entries then add to different
+        // rows of H, so an entry's add does not wait for the previous
+        // one's store (by row first the whole sparse part took 8 % longer
+        // on Sponza at 3,946 patches).
         let mut order: Vec<(usize, usize, usize, usize, u32, usize)> = Vec::with_capacity(sp.len());
         for (i, w) in sp.row_ptr.windows(2).enumerate() {
             for k in w[0] as usize..w[1] as usize {
                 let j = sp.cols[k];
-                order.push((i / tile, j as usize / tile, j as usize / 4, i, j, k));
+                order.push((
+                    i / tile,
+                    j as usize / tile,
+                    j as usize / 4,
+                    j as usize,
+                    i as u32,
+                    k,
+                ));
             }
         }
         order.sort_unstable();
@@ -343,7 +354,7 @@ impl CompressedGather {
         let ch = e.channels;
         let gpt = tile / 4;
         let mut group_start: Vec<u32> = Vec::new();
-        for (idx, &(tr, tc, g, i, j, k)) in order.iter().enumerate() {
+        for (idx, &(tr, tc, g, j, i, k)) in order.iter().enumerate() {
             if idx == 0 || order[idx - 1].0 != tr || order[idx - 1].1 != tc {
                 if !blocks.is_empty() {
                     group_start.resize(blocks.len() * (gpt + 1), idx as u32);
@@ -357,7 +368,7 @@ impl CompressedGather {
                 group_start.push(idx as u32);
             }
             block_start[tr + 1] = blocks.len() as u32;
-            pos.push((((i % tile) as u16) << 8) | (j as usize % tile) as u16);
+            pos.push((((i as usize % tile) as u16) << 8) | (j % tile) as u16);
             if rgb9e5 {
                 let v = &sp.values[3 * k..3 * k + 3];
                 packed.push(rgb9e5::pack(std::array::from_fn(|c| v[c] * sp.scale[c])));
@@ -437,7 +448,7 @@ impl CompressedGather {
         // Channels of B0 to multiply: one when both the matrix and B0 are grey.
         let out_ch = if self.channels == 1 && grey_b0 { 1 } else { 3 };
         let tile = self.tile;
-        // The AVX2 path reads B0 by group of 4 columns, padded; the sparse
+        // The vector BC1 paths read B0 by group of 4 columns, padded; the sparse
         // part's common case by column, channels side by side. Both are
         // written for the active groups only (the only ones read), into
         // buffers kept by the calling thread between products: taken out
@@ -446,7 +457,7 @@ impl CompressedGather {
         let (mut b0p, mut b0x) = INPUTS.take();
         b0p.clear();
         b0x.clear();
-        if self.simd && self.format == DenseFormat::Bc1 && simd_kind() == "avx2" {
+        if self.simd && self.format == DenseFormat::Bc1 {
             fill_b0_groups(b0, active, tile, &mut b0p);
         }
         if self.sparse.rgb9e5 && out_ch == 3 {
@@ -522,10 +533,15 @@ impl CompressedGather {
                 let bh = h / 4;
                 acc.clear();
                 acc.resize(bh, [[0.0f32; 16]; 3]);
-                // Full BC1 rows of tiles on AVX-512 run in one call that
-                // keeps the 24 accumulators in registers: the active block
-                // columns (byte offset, first column) are listed first.
-                let fast = self.simd && self.format == DenseFormat::Bc1;
+                // BC1 rows of tiles run in one vector call (on AVX-512 with
+                // the 24 accumulators of 8 block rows in registers, so for
+                // tiles of at most 32 rows, the encoder's; larger tiles,
+                // which the reader accepts, take the portable path there):
+                // the active block columns (byte offset, first column) are
+                // listed first.
+                let fast = self.simd
+                    && self.format == DenseFormat::Bc1
+                    && (simd_kind() == "avx2" || bh <= 8);
                 fast_cols.clear();
                 for &slot in &visit[..touched] {
                     let slot = slot as usize;
@@ -576,20 +592,20 @@ impl CompressedGather {
                     // SAFETY: `simd` is set only when the CPU reports AVX-512F.
                     unsafe {
                         let tables = self.bc1.as_ref().expect("BC1 tables");
-                        let args = (&self.dense[..], &fast_cols[..], b0, self.n, tables);
+                        let (d, cols) = (&self.dense[..], &fast_cols[..]);
                         let acc = &mut acc[..];
                         // The common full row of tiles (8 block rows) with
                         // its accumulators in registers; the last, shorter
                         // one through the same code with fewer rows.
                         match bh {
-                            8 => x86::bc1_row_avx512::<8>(args, acc),
-                            7 => x86::bc1_row_avx512::<7>(args, acc),
-                            6 => x86::bc1_row_avx512::<6>(args, acc),
-                            5 => x86::bc1_row_avx512::<5>(args, acc),
-                            4 => x86::bc1_row_avx512::<4>(args, acc),
-                            3 => x86::bc1_row_avx512::<3>(args, acc),
-                            2 => x86::bc1_row_avx512::<2>(args, acc),
-                            _ => x86::bc1_row_avx512::<1>(args, acc),
+                            8 => x86::bc1_row_avx512::<8>(d, cols, b0p, tables, acc),
+                            7 => x86::bc1_row_avx512::<7>(d, cols, b0p, tables, acc),
+                            6 => x86::bc1_row_avx512::<6>(d, cols, b0p, tables, acc),
+                            5 => x86::bc1_row_avx512::<5>(d, cols, b0p, tables, acc),
+                            4 => x86::bc1_row_avx512::<4>(d, cols, b0p, tables, acc),
+                            3 => x86::bc1_row_avx512::<3>(d, cols, b0p, tables, acc),
+                            2 => x86::bc1_row_avx512::<2>(d, cols, b0p, tables, acc),
+                            _ => x86::bc1_row_avx512::<1>(d, cols, b0p, tables, acc),
                         }
                     };
                 }
@@ -767,7 +783,7 @@ impl CompressedGather {
 #[derive(Clone, Copy)]
 struct RowInputs<'a> {
     b0: [&'a [f32]; 3],
-    /// [`fill_b0_groups`]'s buffer where the AVX2 path runs, else empty.
+    /// [`fill_b0_groups`]'s buffer where a vector BC1 path runs, else empty.
     b0p: &'a [[[f32; 4]; 3]],
     /// `B0` by column, channels side by side, where [`sparse_rgb9e5`]
     /// runs, else empty.
@@ -909,7 +925,7 @@ fn active_groups(active: &ActiveColumns, tile: usize) -> impl Iterator<Item = us
 }
 
 /// `B0` by group of 4 columns into `out`, the three channels of a group
-/// side by side and zero past `n`: what [`x86::bc1_row_avx2`] broadcasts
+/// side by side and zero past `n`: what the vector BC1 kernels broadcast
 /// per block column, without bounds checks. Only the active groups are
 /// written (the others are never read, and keep what they held).
 fn fill_b0_groups(

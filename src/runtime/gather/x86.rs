@@ -40,75 +40,137 @@ pub(super) unsafe fn sparse_rgb9e5_avx2(
     }
 }
 
-/// The inputs of [`bc1_row_avx512`]: the dense data, the active block
-/// columns (byte offset of their blocks, first matrix column), `B0`, `n`
-/// and the palette tables.
-pub(super) type RowArgs<'a> = (
-    &'a [u8],
-    &'a [(u32, u32)],
-    [&'a [f32]; 3],
-    usize,
-    &'a [Bc1Table; 3],
-);
-
 /// How many active block columns ahead [`bc1_row_avx512`] prefetches:
 /// enough lines in flight to cover a memory latency of ~100 ns at the
 /// ~10 ns one column takes to decode.
 const PREFETCH_AHEAD: usize = 16;
 
-/// A BC1 row of tiles of `BH` block rows on AVX-512: per block, the 16
-/// indices in one vector, and per channel one permute of the 4-entry
-/// palette and one fused multiply-add; each block column times its 4 values
-/// of `B0`, into `acc`, the `3 BH` accumulators held in registers for the
-/// whole row (24 of the 32 vector registers for a full row).
+/// How many active block columns [`bc1_row_avx512`] decodes the keys of
+/// before their multiply-adds: 64 columns are 8 KiB of keys, in L1 while
+/// they are read back (and long stored, so no load waits on a store).
+pub(super) const AVX512_SEGMENT: usize = 64;
+
+/// A BC1 row of tiles of `BH` block rows on AVX-512, each block column
+/// times its 4 values of `B0` (from [`super::fill_b0_groups`]) into `acc`,
+/// the `3 BH` accumulators held in registers for the whole row (24 of the
+/// 32 vector registers for a full row). By segments of
+/// [`AVX512_SEGMENT`] active block columns:
+/// - the palette keys ([`bc1_keys`]) of a full column's 8 blocks are
+///   computed at once in one vector (its 64 bytes: endpoints in the even
+///   32-bit lanes, indices in the odd ones) and stored as two vectors per
+///   column, block `k`'s red and green keys at lanes `2k`, `2k + 1` of
+///   the first, its blue key and indices at `2k`, `2k + 1` of the second
+///   (the scalar key arithmetic was most of the instructions per block);
+/// - then per block: its indices broadcast from memory and shifted so that
+///   lane `l`'s low two bits are entry `l`'s index, and per channel one
+///   palette broadcast (4 values in every 128-bit lane), one `vpermps`
+///   (which reads the low 4 bits of each index lane: with the palette in
+///   every 128-bit lane, bits 2–3 pick one of four equal copies, so no
+///   mask is needed) and one fused multiply-add.
+///
+/// A shorter last row of tiles (`BH < 8`, whose column is less than one
+/// vector) computes the same keys with the scalar [`bc1_keys`]. Per
+/// accumulator lane the columns are added in the same order as on AVX2.
 #[target_feature(enable = "avx512f")]
 pub(super) unsafe fn bc1_row_avx512<const BH: usize>(
-    (dense, cols, b0, n, tables): RowArgs,
+    dense: &[u8],
+    cols: &[(u32, u32)],
+    b0p: &[[[f32; 4]; 3]],
+    tables: &[Bc1Table; 3],
     acc: &mut [[[f32; 16]; 3]],
 ) {
     use std::arch::x86_64::*;
     let shifts = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
-    let three = _mm512_set1_epi32(3);
     let mut a = [[_mm512_setzero_ps(); 3]; BH];
     for (k, row) in a.iter_mut().enumerate() {
         for (c, v) in row.iter_mut().enumerate() {
             *v = _mm512_loadu_ps(acc[k][c].as_ptr());
         }
     }
-    let (v0, v1, v2) = (&tables[0].values, &tables[1].values, &tables[2].values);
-    for (ci, &(off, c0)) in cols.iter().enumerate() {
-        // Skipped columns leave the active ones scattered: each is one
-        // 64-byte line the hardware prefetcher does not predict, and the
-        // long body per column lets few loads overlap. Ask for the column
-        // PREFETCH_AHEAD places on now (a hint; no effect on results).
-        if let Some(&(next, _)) = cols.get(ci + PREFETCH_AHEAD) {
-            _mm_prefetch::<_MM_HINT_T0>(dense.as_ptr().add(next as usize) as *const i8);
-        }
-        let c0 = c0 as usize;
-        let b: [__m512; 3] = std::array::from_fn(|c| {
-            let mut q = [0.0f32; 4];
-            for (i, x) in q.iter_mut().enumerate() {
-                if c0 + i < n {
-                    *x = *b0[c].get_unchecked(c0 + i);
+    let (t0, t1, t2) = (
+        tables[0].values.as_ptr() as *const u8,
+        tables[1].values.as_ptr() as *const u8,
+        tables[2].values.as_ptr() as *const u8,
+    );
+    // Per column of the segment: [kr, kg] and [kb, idx] of its blocks
+    // (byte offsets into the tables: keys times 16).
+    let mut keys = [[[0u32; 16]; 2]; AVX512_SEGMENT];
+    let lo16 = _mm512_set1_epi32(0xffff);
+    let (m5, m6) = (_mm512_set1_epi32(31), _mm512_set1_epi32(63));
+    let (mode_rb, mode_g) = (_mm512_set1_epi32(1 << 10), _mm512_set1_epi32(1 << 12));
+    for (si, seg) in cols.chunks(AVX512_SEGMENT).enumerate() {
+        for (ci, &(off, _)) in seg.iter().enumerate() {
+            // Skipped columns leave the active ones scattered: each is one
+            // 64-byte line the hardware prefetcher does not predict. Ask
+            // for the column PREFETCH_AHEAD places on now (a hint; no
+            // effect on results).
+            if let Some(&(next, _)) = cols.get(si * AVX512_SEGMENT + ci + PREFETCH_AHEAD) {
+                _mm_prefetch::<_MM_HINT_T0>(dense.as_ptr().add(next as usize) as *const i8);
+            }
+            let col = dense.as_ptr().add(off as usize);
+            let out = &mut keys[ci];
+            if BH == 8 {
+                let w = _mm512_loadu_si512(col as *const __m512i);
+                let c0 = _mm512_and_si512(w, lo16);
+                let c1 = _mm512_srli_epi32::<16>(w);
+                let mode = _mm512_cmpgt_epu32_mask(c0, c1);
+                let kr = _mm512_or_si512(
+                    _mm512_slli_epi32::<5>(_mm512_srli_epi32::<11>(c0)),
+                    _mm512_srli_epi32::<11>(c1),
+                );
+                let kr = _mm512_mask_or_epi32(kr, mode, kr, mode_rb);
+                let kg = _mm512_or_si512(
+                    _mm512_slli_epi32::<6>(_mm512_and_si512(_mm512_srli_epi32::<5>(c0), m6)),
+                    _mm512_and_si512(_mm512_srli_epi32::<5>(c1), m6),
+                );
+                let kg = _mm512_mask_or_epi32(kg, mode, kg, mode_g);
+                let kb = _mm512_or_si512(
+                    _mm512_slli_epi32::<5>(_mm512_and_si512(c0, m5)),
+                    _mm512_and_si512(c1, m5),
+                );
+                let kb = _mm512_mask_or_epi32(kb, mode, kb, mode_rb);
+                // Even lanes: red, blue; odd lanes: green (moved up one
+                // lane), the indices as loaded.
+                let rg = _mm512_mask_blend_epi32(
+                    0xaaaa,
+                    _mm512_slli_epi32::<4>(kr),
+                    _mm512_slli_epi64::<32>(_mm512_slli_epi32::<4>(kg)),
+                );
+                let bi = _mm512_mask_blend_epi32(0xaaaa, _mm512_slli_epi32::<4>(kb), w);
+                _mm512_storeu_si512(out[0].as_mut_ptr() as *mut __m512i, rg);
+                _mm512_storeu_si512(out[1].as_mut_ptr() as *mut __m512i, bi);
+            } else {
+                for k in 0..BH {
+                    let word = (col.add(8 * k) as *const u64).read_unaligned();
+                    let [r, g, b, idx] = bc1_keys(word);
+                    out[0][2 * k] = r << 4;
+                    out[0][2 * k + 1] = g << 4;
+                    out[1][2 * k] = b << 4;
+                    out[1][2 * k + 1] = idx;
                 }
             }
-            _mm512_broadcast_f32x4(_mm_loadu_ps(q.as_ptr()))
-        });
-        let col = dense.get_unchecked(off as usize..off as usize + 8 * BH);
-        for (k, row) in a.iter_mut().enumerate() {
-            let blk = col.as_ptr().add(8 * k);
-            let word = (blk as *const u64).read_unaligned();
-            let [kr, kg, kb, idx] = bc1_keys(word).map(|x| x as usize);
-            let iv = _mm512_and_epi32(
-                _mm512_srlv_epi32(_mm512_set1_epi32(idx as u32 as i32), shifts),
-                three,
-            );
-            let pr = _mm512_broadcast_f32x4(_mm_loadu_ps(v0.get_unchecked(kr).as_ptr()));
-            let pg = _mm512_broadcast_f32x4(_mm_loadu_ps(v1.get_unchecked(kg).as_ptr()));
-            let pb = _mm512_broadcast_f32x4(_mm_loadu_ps(v2.get_unchecked(kb).as_ptr()));
-            row[0] = _mm512_fmadd_ps(_mm512_permutexvar_ps(iv, pr), b[0], row[0]);
-            row[1] = _mm512_fmadd_ps(_mm512_permutexvar_ps(iv, pg), b[1], row[1]);
-            row[2] = _mm512_fmadd_ps(_mm512_permutexvar_ps(iv, pb), b[2], row[2]);
+        }
+        for (ci, &(_, c0)) in seg.iter().enumerate() {
+            let bp = b0p.get_unchecked(c0 as usize / 4).as_ptr() as *const f32;
+            // No closures here: intrinsics inside one may not be inlined
+            // into this AVX-512 function.
+            let b = [
+                _mm512_broadcast_f32x4(_mm_loadu_ps(bp)),
+                _mm512_broadcast_f32x4(_mm_loadu_ps(bp.add(4))),
+                _mm512_broadcast_f32x4(_mm_loadu_ps(bp.add(8))),
+            ];
+            let key = &keys[ci];
+            for (k, row) in a.iter_mut().enumerate() {
+                let (kr, kg) = (key[0][2 * k] as usize, key[0][2 * k + 1] as usize);
+                let (kb, idx) = (key[1][2 * k] as usize, key[1][2 * k + 1]);
+                let iv = _mm512_srlv_epi32(_mm512_set1_epi32(idx as i32), shifts);
+                let pr = _mm512_broadcast_f32x4(_mm_loadu_ps(t0.add(kr) as *const f32));
+                let pg = _mm512_broadcast_f32x4(_mm_loadu_ps(t1.add(kg) as *const f32));
+                let pb = _mm512_broadcast_f32x4(_mm_loadu_ps(t2.add(kb) as *const f32));
+                row[0] = _mm512_fmadd_ps(_mm512_permutexvar_ps(iv, pr), b[0], row[0]);
+                row[1] = _mm512_fmadd_ps(_mm512_permutexvar_ps(iv, pg), b[1], row[1]);
+                row[2] = _mm512_fmadd_ps(_mm512_permutexvar_ps(iv, pb), b[2], row[2]);
+            }
         }
     }
     for (k, row) in a.iter().enumerate() {
