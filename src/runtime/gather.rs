@@ -516,6 +516,7 @@ impl CompressedGather {
             acc,
             fast_cols,
             keys,
+            keys512,
             visit,
         } = scratch;
         // This row's stored tiles in active tile columns, listed without
@@ -598,14 +599,14 @@ impl CompressedGather {
                         // its accumulators in registers; the last, shorter
                         // one through the same code with fewer rows.
                         match bh {
-                            8 => x86::bc1_row_avx512::<8>(d, cols, b0p, tables, acc),
-                            7 => x86::bc1_row_avx512::<7>(d, cols, b0p, tables, acc),
-                            6 => x86::bc1_row_avx512::<6>(d, cols, b0p, tables, acc),
-                            5 => x86::bc1_row_avx512::<5>(d, cols, b0p, tables, acc),
-                            4 => x86::bc1_row_avx512::<4>(d, cols, b0p, tables, acc),
-                            3 => x86::bc1_row_avx512::<3>(d, cols, b0p, tables, acc),
-                            2 => x86::bc1_row_avx512::<2>(d, cols, b0p, tables, acc),
-                            _ => x86::bc1_row_avx512::<1>(d, cols, b0p, tables, acc),
+                            8 => x86::bc1_row_avx512::<8>(d, cols, b0p, tables, keys512, acc),
+                            7 => x86::bc1_row_avx512::<7>(d, cols, b0p, tables, keys512, acc),
+                            6 => x86::bc1_row_avx512::<6>(d, cols, b0p, tables, keys512, acc),
+                            5 => x86::bc1_row_avx512::<5>(d, cols, b0p, tables, keys512, acc),
+                            4 => x86::bc1_row_avx512::<4>(d, cols, b0p, tables, keys512, acc),
+                            3 => x86::bc1_row_avx512::<3>(d, cols, b0p, tables, keys512, acc),
+                            2 => x86::bc1_row_avx512::<2>(d, cols, b0p, tables, keys512, acc),
+                            _ => x86::bc1_row_avx512::<1>(d, cols, b0p, tables, keys512, acc),
                         }
                     };
                 }
@@ -806,6 +807,8 @@ struct RowScratch {
     fast_cols: Vec<(u32, u32)>,
     /// [`x86::bc1_row_avx2`]'s palette keys.
     keys: Vec<u32>,
+    /// [`x86::bc1_row_avx512`]'s palette keys.
+    keys512: Vec<[[u32; 16]; 2]>,
     /// The row's stored tiles (then sparse blocks) to visit ([`compact`]).
     visit: Vec<u32>,
 }

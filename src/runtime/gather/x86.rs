@@ -77,6 +77,7 @@ pub(super) unsafe fn bc1_row_avx512<const BH: usize>(
     cols: &[(u32, u32)],
     b0p: &[[[f32; 4]; 3]],
     tables: &[Bc1Table; 3],
+    keys: &mut Vec<[[u32; 16]; 2]>,
     acc: &mut [[[f32; 16]; 3]],
 ) {
     use std::arch::x86_64::*;
@@ -93,8 +94,9 @@ pub(super) unsafe fn bc1_row_avx512<const BH: usize>(
         tables[2].values.as_ptr() as *const u8,
     );
     // Per column of the segment: [kr, kg] and [kb, idx] of its blocks
-    // (byte offsets into the tables: keys times 16).
-    let mut keys = [[[0u32; 16]; 2]; AVX512_SEGMENT];
+    // (byte offsets into the tables: keys times 16), in the caller's
+    // buffer, kept between rows (a new one per row is 8 KiB to fill).
+    keys.resize(AVX512_SEGMENT, [[0; 16]; 2]);
     let lo16 = _mm512_set1_epi32(0xffff);
     let (m5, m6) = (_mm512_set1_epi32(31), _mm512_set1_epi32(63));
     let (mode_rb, mode_g) = (_mm512_set1_epi32(1 << 10), _mm512_set1_epi32(1 << 12));
