@@ -11,6 +11,9 @@
 // skipped (tile_active, built per frame by the host). The decoded byte x in
 // [0, 1] of channel c is the entry scale_c * exp(L (x - 1)), and 0 for
 // x = 0 (bakefile::codec, "Log scale"). Then the exact sparse part of row i.
+// Both parts hold T' = T~ diag(1/s) with the column scales s (all 1 for a
+// matrix without them: bakefile::codec, "Column scales"), so each term
+// multiplies s_j B0_j, rounded as the CPU gather rounds it.
 
 layout(local_size_x = TILE) in;
 
@@ -26,6 +29,7 @@ layout(std430, binding = 6) readonly buffer SparseVal { float sparse_val[]; }; /
 layout(std430, binding = 7) writeonly buffer H { float h[]; };         // 3 n, channel-major
 layout(std430, binding = 8) readonly buffer Dense { uint dense[]; };   // f16, f32: the stored tiles' bytes
 layout(std430, binding = 9) readonly buffer Offset { uint tile_offset[]; }; // byte offset of each stored tile
+layout(std430, binding = 10) readonly buffer ColScale { float col_scale[]; }; // n: the stored matrix multiplies s o B0
 
 uniform uint n;
 uniform uint atlas_tiles_x;
@@ -95,13 +99,13 @@ void main() {
                 v = plain(s, r, c, tw);
             }
             uint j = c0 + c;
-            acc += v * vec3(b0[j], b0[n + j], b0[2u * n + j]);
+            acc += v * (col_scale[j] * vec3(b0[j], b0[n + j], b0[2u * n + j]));
         }
     }
     for (uint e = sparse_row[i]; e < sparse_row[i + 1u]; e++) {
         uint j = sparse_col[e];
         vec3 v = vec3(sparse_val[3u * e], sparse_val[3u * e + 1u], sparse_val[3u * e + 2u]);
-        acc += v * vec3(b0[j], b0[n + j], b0[2u * n + j]);
+        acc += v * (col_scale[j] * vec3(b0[j], b0[n + j], b0[2u * n + j]));
     }
     h[i] = acc.r;
     h[n + i] = acc.g;

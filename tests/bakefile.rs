@@ -50,6 +50,7 @@ fn sample() -> BakeFile {
             dense: (0..40u8).collect(),
             tile_index: vec![9, 8, 7],
             sparse: vec![],
+            col_scale: vec![],
         },
         mesh_map: vec![
             [(0, 1.0), (0, 0.0), (0, 0.0), (0, 0.0)],
@@ -678,8 +679,13 @@ fn rejects_inconsistent_codec_descriptor_and_scales() {
     );
     reject_section(
         tag::CODEC,
+        |b| set_u32(b, 12, 2),
+        &["section CDSC", "flags are 0x2"],
+    );
+    reject_section(
+        tag::CODEC,
         |b| set_u32(b, 12, 1),
-        &["section CDSC", "reserved field is 1"],
+        &["section CDSC", "flag bit 0", "no CCOL section"],
     );
     reject_section(
         tag::CODEC,
@@ -1115,4 +1121,67 @@ fn near_field_errors_name_the_section_and_the_value() {
         let (_, m) = reject(&with(&*f));
         assert!(m.contains("NEAR") && m.contains(want), "{want}: {m}");
     }
+}
+
+fn with_column_scales() -> BakeFile {
+    let mut bf = sample();
+    bf.codec.col_scale = vec![1.0, 0.5, 0.25, 1e-6, 0.75];
+    bf
+}
+
+/// The matrix's column scales: written with flag bit 0 of the codec
+/// descriptor and a CCOL section, read back exactly; a file without them
+/// has neither; every inconsistency is an error naming the section.
+#[test]
+fn column_scales_round_trip_and_are_checked() {
+    let bf = with_column_scales();
+    let bytes = encode(&bf).unwrap();
+    assert_eq!(parse(&bytes).unwrap(), bf);
+    let secs = sections_of(&bytes);
+    let cdsc = &secs.iter().find(|s| s.0 == tag::CODEC).unwrap().1;
+    assert_eq!(u32::from_le_bytes(cdsc[12..16].try_into().unwrap()), 1);
+    assert!(secs.iter().any(|s| s.0 == *b"CCOL"));
+    let plain = encode(&sample()).unwrap();
+    assert!(sections_of(&plain).iter().all(|s| s.0 != *b"CCOL"));
+    assert!(parse(&plain).unwrap().codec.col_scale.is_empty());
+
+    // Rewrites one section of the scaled file and reseals it.
+    let with = |t: [u8; 4], f: &dyn Fn(&mut Vec<u8>)| {
+        let mut secs = sections_of(&bytes);
+        for s in secs.iter_mut().filter(|s| s.0 == t) {
+            f(&mut s.1);
+        }
+        let refs: Vec<([u8; 4], &[u8])> = secs.iter().map(|(t, b)| (*t, b.as_slice())).collect();
+        encode_sections(&refs)
+    };
+    let cases: Vec<(Vec<u8>, &str)> = vec![
+        (
+            with(*b"CCOL", &|b| set_f32(b, 4, 0.0)),
+            "column 1's scale is 0",
+        ),
+        (
+            with(*b"CCOL", &|b| set_f32(b, 8, f32::NAN)),
+            "column 2's scale is NaN",
+        ),
+        (
+            with(*b"CCOL", &|b| b.truncate(16)),
+            "4 column scales for 5 patches",
+        ),
+        (
+            with(tag::CODEC, &|b| set_u32(b, 12, 0)),
+            "column scales present but the codec descriptor's flag bit 0 is not set",
+        ),
+    ];
+    for (file, want) in cases {
+        let (e, m) = reject(&file);
+        assert!(matches!(e, BakeFileError::Invalid { .. }), "{m}");
+        assert!(m.contains(want), "message {m:?} lacks {want:?}");
+        assert!(m.contains("CCOL") || m.contains("CDSC"), "{m}");
+    }
+    // The writer refuses what the reader would reject.
+    let mut bad = with_column_scales();
+    bad.codec.col_scale[3] = -1.0;
+    assert!(encode(&bad).is_err());
+    bad.codec.col_scale.pop();
+    assert!(encode(&bad).is_err());
 }

@@ -407,3 +407,68 @@ fn tiles_larger_than_the_encoders_gather_the_same() {
         }
     }
 }
+
+/// Column scales (`Encoded::col_scale`, what the bake stores: each column
+/// divided by its patch's relative area): the stored matrix is
+/// `T' = T diag(1/s)` and every decoder multiplies `s ∘ B0`. Scales over
+/// six decades, every codec: the reference decode gives exactly what the
+/// unscaled encoding of `T'` gives for `s ∘ B0`; `decode` gives `T'`'s
+/// columns times `s`; the run-time gather (both paths, with skipping)
+/// agrees with the reference within its rounding bound (one more rounding:
+/// `s ∘ B0` in f32, below the bound's slack of 4 u); and against the exact
+/// `T · B0` the error is the codec's own on `T'`.
+#[test]
+fn column_scales_are_applied_by_every_decoder() {
+    let (t, b0, n) = problem(8, 2, false);
+    let s: Vec<f32> = (0..n)
+        .map(|j| 10f32.powf(-6.0 * ((j * 37) % n) as f32 / n as f32))
+        .collect();
+    let tp: [Vec<f32>; 3] =
+        std::array::from_fn(|c| (0..n * n).map(|k| t[c][k] / s[k % n]).collect());
+    let b = refs(&b0);
+    let sb: [Vec<f32>; 3] =
+        std::array::from_fn(|c| b0[c].iter().zip(&s).map(|(x, y)| x * y).collect());
+    let exact = dense_product(refs(&t), n, b);
+    for (name, kind) in kinds() {
+        let plain = encode::encode(kind, refs(&tp), n).unwrap();
+        let mut e = plain.clone();
+        e.col_scale = s.clone();
+        let reference = e.gather_f64(b);
+        assert_eq!(reference, plain.gather_f64(refs(&sb)), "{name}");
+        let (d, dp) = (e.decode(), plain.decode());
+        for c in 0..3 {
+            for k in 0..n * n {
+                assert_eq!(d[c][k], dp[c][k] * s[k % n], "{name}: decode");
+            }
+        }
+        let bc4 = matches!(e.format, DenseFormat::Bc4);
+        for simd in [false, true] {
+            let g = CompressedGather::new(&e, simd);
+            for all in [true, false] {
+                let mut h: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+                g.gather(b, &ActiveColumns::of(b, e.index.tile, all), &mut h);
+                for c in 0..3 {
+                    for i in 0..n {
+                        let r = reference[c][i];
+                        let rel = (h[c][i] as f64 - r).abs() / r.max(1e-30);
+                        assert!(
+                            rel <= bound(n, bc4),
+                            "{name} simd {simd}: H[{c}][{i}] {} vs {r}",
+                            h[c][i]
+                        );
+                    }
+                }
+            }
+        }
+        let err = encode::h_error(&e, std::slice::from_ref(&exact), std::slice::from_ref(&b0));
+        let err_plain = encode::h_error(
+            &plain,
+            &[dense_product(refs(&tp), n, refs(&sb))],
+            std::slice::from_ref(&sb),
+        );
+        assert!(
+            (err - err_plain).abs() <= 1e-6 + 1e-3 * err_plain,
+            "{name}: {err} with scales, {err_plain} for T' alone"
+        );
+    }
+}

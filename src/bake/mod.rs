@@ -50,6 +50,7 @@ use crate::core::permutation::Permutation;
 use crate::core::scene::{self};
 use anyhow::Context as _;
 use form_factor::FormFactors;
+use rayon::prelude::*;
 use reorder::ReorderMethod;
 use report::{bar, spinner};
 use std::path::Path;
@@ -121,11 +122,33 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     let (perm, reorder_stats) =
         reorder::reorder_with_stats(method, t_ref, n, &patches, backend_of(&gpu))?;
     sp.finish_and_clear();
-    let permuted: Vec<Vec<f32>> = tr
+    let mut permuted: Vec<Vec<f32>> = tr
         .channels
         .iter()
         .map(|c| perm.apply_symmetric(c, n))
         .collect();
+    // Column scales (`Encoded::col_scale`): each column divided by its
+    // patch's area relative to the largest, for the log codecs (a plain
+    // f32 or f16 matrix would only gain a rounding). In place: the
+    // encoder sees `T' = T diag(1/s)`, the error measure `s ∘ B0`.
+    let scale_columns = match config.codec {
+        CodecChoice::Fixed(kind) => kind.log_params().is_some(),
+        CodecChoice::MaxError(_) => true,
+    };
+    let col_scale: Vec<f32> = if scale_columns {
+        column_scales(&perm.apply_vec(&patches.iter().map(|p| p.area).collect::<Vec<f64>>()))
+    } else {
+        Vec::new()
+    };
+    if !col_scale.is_empty() {
+        for c in &mut permuted {
+            c.par_chunks_mut(n.max(1)).for_each(|row| {
+                for (v, s) in row.iter_mut().zip(&col_scale) {
+                    *v /= s;
+                }
+            });
+        }
+    }
     let tp: [&[f32]; 3] = std::array::from_fn(|c| permuted[c.min(permuted.len() - 1)].as_slice());
     stages.push(StageTime {
         stage: "reorder",
@@ -141,7 +164,16 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         ));
         error_samples(&scene, &patches, config.error_lights)
             .iter()
-            .map(|b| std::array::from_fn(|c| perm.apply_vec(&b[c])))
+            .map(|b| {
+                std::array::from_fn(|c| {
+                    let v = perm.apply_vec(&b[c]);
+                    if col_scale.is_empty() {
+                        v
+                    } else {
+                        v.iter().zip(&col_scale).map(|(x, s)| x * s).collect()
+                    }
+                })
+            })
             .collect()
     } else {
         Vec::new()
@@ -173,6 +205,8 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         }
     };
     sp.finish_and_clear();
+    let mut encoded = encoded;
+    encoded.col_scale = col_scale;
     let summary = CodecSummary::of(&encoded, chosen_by, h_error, b0_samples.len());
     stages.push(StageTime {
         stage: "encode",
@@ -498,6 +532,20 @@ fn backend_of(gpu: &Option<Gpu>) -> Backend<'_> {
 /// shadows on the CPU, for the patches in matrix order.
 pub fn error_samples(scene: &scene::Scene, patches: &[Patch], count: usize) -> Vec<[Vec<f32>; 3]> {
     direct::light_samples(scene, patches, count, ERROR_LIGHTS_SEED)
+}
+
+/// The column scales of a matrix whose patches have areas `area` (matrix
+/// order): each area relative to the largest, so in (0, 1] (a patch of
+/// zero area, which the voxelizer does not keep, would get the smallest
+/// positive f32 rather than 0).
+pub fn column_scales(area: &[f64]) -> Vec<f32> {
+    let max = area.iter().cloned().fold(0.0f64, f64::max);
+    if !(max > 0.0 && max.is_finite()) {
+        return vec![1.0; area.len()];
+    }
+    area.iter()
+        .map(|&a| ((a / max) as f32).max(f32::MIN_POSITIVE))
+        .collect()
 }
 
 /// The exact `T · B0` in f64 for every sample and channel.

@@ -267,6 +267,9 @@ pub struct FileSummary {
     pub bounces: super::records::BouncesRecord,
     pub reorder: String,
     pub codec: String,
+    /// The smallest and largest column scale ([`Encoded::col_scale`]),
+    /// `None` for a matrix without them.
+    pub column_scales: Option<(f32, f32)>,
     pub bytes_per_entry: f64,
     pub bytes_dense: u64,
     pub bytes_sparse: u64,
@@ -321,6 +324,11 @@ pub fn describe(path: &Path) -> Result<FileSummary, LoadError> {
         bounces: b.options.bounces,
         reorder: b.options.reorder.clone(),
         codec: e.kind.name(),
+        column_scales: (!e.col_scale.is_empty()).then(|| {
+            e.col_scale
+                .iter()
+                .fold((f32::MAX, 0.0f32), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+        }),
         bytes_per_entry: e.bytes_per_entry(),
         bytes_dense: e.bytes_dense() as u64,
         bytes_sparse: e.bytes_sparse() as u64,
@@ -379,6 +387,13 @@ impl std::fmt::Display for FileSummary {
             self.bytes_index as f64 / entries,
             100.0 * self.zero_tile_fraction
         )?;
+        match self.column_scales {
+            Some((lo, hi)) => writeln!(
+                f,
+                "column scales (relative patch areas): {lo:.3e} to {hi:.3e}"
+            )?,
+            None => writeln!(f, "column scales: none")?,
+        }
         match self.h_error {
             Some(e) => writeln!(
                 f,

@@ -42,12 +42,13 @@
 //! | `SRCH` | the source scene's content hash, [`SceneHash`]: 4 × `u64`                 |
 //! | `PTCH` | the patches, `n` records of 13 × `f32` ([`PatchRecord`], 52 bytes)        |
 //! | `PERM` | the reordering permutation, `n` × `u32`                                   |
-//! | `CDSC` | codec descriptor: `kind u32`, `n u32`, `tile_size u32`, reserved `u32` = 0 |
+//! | `CDSC` | codec descriptor: `kind u32`, `n u32`, `tile_size u32`, `flags u32`      |
 //! | `CPRM` | codec parameters, JSON text                                               |
 //! | `SCAL` | the codec's channel scales, 3 × `f32`                                     |
 //! | `DENS` | the dense codec data (opaque to this module, e.g. BC1 blocks)             |
 //! | `TIDX` | the tile index (opaque)                                                   |
 //! | `SPRS` | the sparse correction (opaque)                                            |
+//! | `CCOL` | with flag bit 0 of `CDSC`: the matrix's column scales, `n` × `f32` > 0     |
 //! | `MMAP` | the mesh-to-patch map, per vertex 4 × (`u32` patch, `f32` weight)         |
 //! | `SMAP` | the per-pixel surface map ([`surface`] gives the layout)                  |
 //! | `PSMP` | the patches' sample points ([`surface`])                                  |
@@ -116,6 +117,11 @@ pub const MAP_ENTRY_LEN: usize = 32;
 /// Bytes of the codec descriptor `CDSC`.
 pub const CODEC_DESCRIPTOR_LEN: usize = 16;
 
+/// Bit 0 of the codec descriptor's flags (its fourth field, 0 in files
+/// written before column scales existed, and refused when not 0 by the
+/// readers of those files): the matrix's column scales follow in `CCOL`.
+pub const CODEC_FLAG_COLUMN_SCALES: u32 = 1;
+
 /// Tolerance on the sum of a mesh-map row's weights. A row is normalised in
 /// f64 and stored as four f32 values; each rounding moves the sum by at most
 /// 2^-24 ≈ 6e-8 (weights are ≤ 1), so a correct row is within 2.4e-7 of 1.
@@ -150,6 +156,9 @@ pub mod tag {
     pub const TILE_INDEX: [u8; 4] = *b"TIDX";
     /// Sparse correction.
     pub const SPARSE: [u8; 4] = *b"SPRS";
+    /// The matrix's column scales (present when bit 0 of the codec
+    /// descriptor's flags is set: [`CODEC_FLAG_COLUMN_SCALES`]).
+    pub const COLUMN_SCALES: [u8; 4] = *b"CCOL";
     /// Mesh-to-patch map.
     pub const MESH_MAP: [u8; 4] = *b"MMAP";
     /// The per-pixel surface map.
@@ -194,6 +203,7 @@ pub fn section_what(t: [u8; 4]) -> &'static str {
         tag::DENSE => "dense codec data",
         tag::TILE_INDEX => "tile index",
         tag::SPARSE => "sparse correction",
+        tag::COLUMN_SCALES => "column scales",
         tag::MESH_MAP => "mesh-to-patch map",
         tag::SURFACE_MAP => "surface map",
         tag::SAMPLES => "patch sample points",
@@ -272,6 +282,8 @@ pub struct CodecBlob {
     pub tile_index: Vec<u8>,
     /// The exact sparse correction.
     pub sparse: Vec<u8>,
+    /// The matrix's column scales (`CCOL`), empty when it has none.
+    pub col_scale: Vec<f32>,
 }
 
 /// Everything one bake leaves for the run time.
@@ -432,6 +444,26 @@ pub fn validate(bf: &BakeFile, file: &str) -> Result<(), BakeFileError> {
         ));
     }
 
+    let cs = &bf.codec.col_scale;
+    if !cs.is_empty() && cs.len() != n {
+        return Err(invalid(
+            file,
+            tag::COLUMN_SCALES,
+            format!("{} column scales for {n} patches", cs.len()),
+        ));
+    }
+    if let Some((j, v)) = cs
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(v.is_finite() && **v > 0.0))
+    {
+        return Err(invalid(
+            file,
+            tag::COLUMN_SCALES,
+            format!("column {j}'s scale is {v}: must be finite and > 0"),
+        ));
+    }
+
     bf.surface_map
         .check(n)
         .map_err(|d| invalid(file, tag::SURFACE_MAP, d))?;
@@ -507,9 +539,16 @@ fn encode_named(bf: &BakeFile, file: &str) -> Result<Vec<u8>, BakeFileError> {
         perm.extend_from_slice(&p.to_le_bytes());
     }
     let mut codec = Vec::with_capacity(CODEC_DESCRIPTOR_LEN);
-    for v in [bf.codec.kind, bf.codec.n, bf.codec.tile_size, 0] {
+    let flags = if bf.codec.col_scale.is_empty() {
+        0
+    } else {
+        CODEC_FLAG_COLUMN_SCALES
+    };
+    for v in [bf.codec.kind, bf.codec.n, bf.codec.tile_size, flags] {
         codec.extend_from_slice(&v.to_le_bytes());
     }
+    let mut col_scales = Vec::with_capacity(4 * bf.codec.col_scale.len());
+    f32s_to_bytes(bf.codec.col_scale.iter().copied(), &mut col_scales);
     let mut scales = Vec::with_capacity(12);
     f32s_to_bytes(bf.codec.scales, &mut scales);
     let mut map = Vec::with_capacity(bf.mesh_map.len() * MAP_ENTRY_LEN);
@@ -534,10 +573,15 @@ fn encode_named(bf: &BakeFile, file: &str) -> Result<Vec<u8>, BakeFileError> {
         (tag::DENSE, &bf.codec.dense),
         (tag::TILE_INDEX, &bf.codec.tile_index),
         (tag::SPARSE, &bf.codec.sparse),
-        (tag::MESH_MAP, &map),
+    ];
+    if flags & CODEC_FLAG_COLUMN_SCALES != 0 {
+        sections.push((tag::COLUMN_SCALES, &col_scales));
+    }
+    sections.extend_from_slice(&[
+        (tag::MESH_MAP, &map[..]),
         (tag::SURFACE_MAP, &smap),
         (tag::SAMPLES, &psmp),
-    ];
+    ]);
     if !bf.near_field.is_empty() {
         sections.push((tag::NEAR_FIELD, &near));
     }
@@ -545,7 +589,7 @@ fn encode_named(bf: &BakeFile, file: &str) -> Result<Vec<u8>, BakeFileError> {
     debug_assert!(sections
         .iter()
         .map(|s| s.0)
-        .filter(|t| *t != tag::NEAR_FIELD)
+        .filter(|t| *t != tag::NEAR_FIELD && *t != tag::COLUMN_SCALES)
         .eq(tag::REQUIRED));
     Ok(encode_sections(&sections))
 }
@@ -658,13 +702,36 @@ pub fn parse_named(bytes: &[u8], file: &str) -> Result<BakeFile, BakeFileError> 
         .map(|c| le_u32(c, 0))
         .collect();
     let desc = exact(tag::CODEC, CODEC_DESCRIPTOR_LEN)?;
-    if le_u32(desc, 12) != 0 {
+    let flags = le_u32(desc, 12);
+    if flags & !CODEC_FLAG_COLUMN_SCALES != 0 {
         return Err(invalid(
             file,
             tag::CODEC,
-            format!("reserved field is {}, must be 0", le_u32(desc, 12)),
+            format!("flags are {flags:#x}: this build knows only bit 0 (column scales)"),
         ));
     }
+    let col_scale_section = secs.iter().find(|s| s.tag == tag::COLUMN_SCALES);
+    let col_scale: Vec<f32> = match (flags & CODEC_FLAG_COLUMN_SCALES != 0, col_scale_section) {
+        (true, Some(_)) => multiple(tag::COLUMN_SCALES, 4, "f32 column scales")?
+            .chunks_exact(4)
+            .map(|c| f32_at(c, 0))
+            .collect(),
+        (false, None) => Vec::new(),
+        (true, None) => {
+            return Err(invalid(
+                file,
+                tag::CODEC,
+                "flag bit 0 says the column scales follow, but there is no CCOL section".into(),
+            ))
+        }
+        (false, Some(_)) => {
+            return Err(invalid(
+                file,
+                tag::COLUMN_SCALES,
+                "column scales present but the codec descriptor's flag bit 0 is not set".into(),
+            ))
+        }
+    };
     let scales_b = exact(tag::SCALES, 12)?;
     let codec = CodecBlob {
         kind: le_u32(desc, 0),
@@ -675,6 +742,7 @@ pub fn parse_named(bytes: &[u8], file: &str) -> Result<BakeFile, BakeFileError> 
         dense: get(tag::DENSE)?.to_vec(),
         tile_index: get(tag::TILE_INDEX)?.to_vec(),
         sparse: get(tag::SPARSE)?.to_vec(),
+        col_scale,
     };
     let mesh_map: Vec<[(u32, f32); 4]> = multiple(tag::MESH_MAP, MAP_ENTRY_LEN, "vertex entries")?
         .chunks_exact(MAP_ENTRY_LEN)

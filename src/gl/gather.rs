@@ -41,10 +41,11 @@ pub const SOURCE: &str = include_str!("../../glsl/gather.comp");
 pub struct GlGather {
     program: glow::Program,
     atlas: glow::Texture,
-    /// Storage buffers at bindings 0..=9 (row starts, tile columns, B0,
+    /// Storage buffers at bindings 0..=10 (row starts, tile columns, B0,
     /// active tile columns, sparse rows, sparse columns, sparse values, H,
-    /// the plain formats' dense bytes, stored tiles' byte offsets).
-    buffers: [glow::Buffer; 10],
+    /// the plain formats' dense bytes, stored tiles' byte offsets, the
+    /// matrix's column scales: ones where it has none).
+    buffers: [glow::Buffer; 11],
     n: usize,
     tiles_per_side: usize,
     atlas_tiles_x: usize,
@@ -145,11 +146,11 @@ impl GlGather {
             gl.tex_parameter_i32(t, glow::TEXTURE_MIN_FILTER, glow::NEAREST as i32);
             gl.tex_parameter_i32(t, glow::TEXTURE_MAG_FILTER, glow::NEAREST as i32);
             gl.tex_parameter_i32(t, glow::TEXTURE_MAX_LEVEL, 0);
-            let mut buffers = Vec::with_capacity(10);
-            for _ in 0..10 {
+            let mut buffers = Vec::with_capacity(11);
+            for _ in 0..11 {
                 buffers.push(gl.create_buffer().map_err(GlError::Call)?);
             }
-            let buffers: [glow::Buffer; 10] = buffers.try_into().expect("ten buffers");
+            let buffers: [glow::Buffer; 11] = buffers.try_into().expect("eleven buffers");
             let upload = |b: glow::Buffer, data: &[u8]| {
                 gl.bind_buffer(glow::SHADER_STORAGE_BUFFER, Some(b));
                 // At least 4 bytes: an empty buffer cannot be bound.
@@ -184,6 +185,12 @@ impl GlGather {
                 upload(buffers[8], &[]);
             }
             upload(buffers[9], bytes_of(&e.index.offsets));
+            let col_scale = if e.col_scale.is_empty() {
+                vec![1.0f32; e.n]
+            } else {
+                e.col_scale.clone()
+            };
+            upload(buffers[10], bytes_of(&col_scale));
             gl.bind_buffer(glow::SHADER_STORAGE_BUFFER, Some(buffers[7]));
             gl.buffer_data_size(
                 glow::SHADER_STORAGE_BUFFER,
@@ -215,8 +222,11 @@ impl GlGather {
                 channels: e.channels,
                 image_size: e.image_size,
                 bytes: (e.dense.len()
-                    + 4 * (row_ptr.len() + cols.len() + sp.cols.len() + sp.values.len()))
-                    as u64,
+                    + 4 * (row_ptr.len()
+                        + cols.len()
+                        + sp.cols.len()
+                        + sp.values.len()
+                        + e.col_scale.len())) as u64,
             })
         }
     }

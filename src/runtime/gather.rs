@@ -185,6 +185,8 @@ pub struct CompressedGather {
     bc4_5: Vec<[f32; 1276]>,
     book: Codebook,
     sparse: SparseRt,
+    /// [`Encoded::col_scale`] (empty: none).
+    col_scale: Vec<f32>,
     bytes_index: u64,
     simd: bool,
 }
@@ -415,6 +417,7 @@ impl CompressedGather {
             bc4_5,
             book,
             sparse,
+            col_scale: e.col_scale.clone(),
             bytes_index: e.bytes_index() as u64,
             simd: simd && simd_available(),
         }
@@ -444,6 +447,21 @@ impl CompressedGather {
         h: &mut [Vec<f32>; 3],
     ) -> GatherStats {
         let n = self.n;
+        // Column scales: the stored matrix multiplies s ∘ B0 (zero where
+        // B0 is, so the active groups are the same).
+        let scaled: Option<[Vec<f32>; 3]> = (!self.col_scale.is_empty()).then(|| {
+            std::array::from_fn(|c| {
+                b0[c]
+                    .iter()
+                    .zip(&self.col_scale)
+                    .map(|(x, s)| x * s)
+                    .collect()
+            })
+        });
+        let b0 = match &scaled {
+            Some(v) => [&v[0][..], &v[1][..], &v[2][..]],
+            None => b0,
+        };
         let grey_b0 = b0[0] == b0[1] && b0[1] == b0[2];
         // Channels of B0 to multiply: one when both the matrix and B0 are grey.
         let out_ch = if self.channels == 1 && grey_b0 { 1 } else { 3 };

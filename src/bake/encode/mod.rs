@@ -526,6 +526,7 @@ pub fn encode(kind: CodecKind, t: [&[f32]; 3], n: usize) -> Result<Encoded, Enco
         index,
         dense,
         sparse,
+        col_scale: Vec::new(),
         stats,
     })
 }

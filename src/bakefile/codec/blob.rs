@@ -246,6 +246,29 @@ impl Encoded {
         if self.scale.iter().any(|s| !s.is_finite()) || !self.log_range.is_finite() {
             return bad("non-finite scale".into());
         }
+        if !self.col_scale.is_empty() {
+            if self.col_scale.len() != self.n {
+                return Err(CodecDataError {
+                    section: "CCOL",
+                    detail: format!(
+                        "{} column scales for {} patches",
+                        self.col_scale.len(),
+                        self.n
+                    ),
+                });
+            }
+            if let Some((j, v)) = self
+                .col_scale
+                .iter()
+                .enumerate()
+                .find(|(_, v)| !(v.is_finite() && **v > 0.0))
+            {
+                return Err(CodecDataError {
+                    section: "CCOL",
+                    detail: format!("column {j}'s scale is {v}: must be finite and > 0"),
+                });
+            }
+        }
         Ok(())
     }
 
@@ -327,6 +350,7 @@ impl Encoded {
             dense: self.dense.clone(),
             tile_index,
             sparse,
+            col_scale: self.col_scale.clone(),
         }
     }
 
@@ -451,6 +475,7 @@ impl Encoded {
             },
             dense: blob.dense.clone(),
             sparse,
+            col_scale: blob.col_scale.clone(),
             stats: params.stats,
         };
         e.check()?;

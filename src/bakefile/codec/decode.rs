@@ -68,6 +68,23 @@ impl Encoded {
                 assert_eq!(b.len(), n, "B0 must have one value per patch");
             }
         }
+        // Column scales: the stored matrix multiplies s ∘ B0.
+        let scaled: Vec<[Vec<f32>; 3]> = if self.col_scale.is_empty() {
+            Vec::new()
+        } else {
+            b0s.iter()
+                .map(|b| std::array::from_fn(|c| self.scaled_input(b[c]).expect("scales")))
+                .collect()
+        };
+        let scaled_refs: Vec<[&[f32]; 3]> = scaled
+            .iter()
+            .map(|b| [&b[0][..], &b[1][..], &b[2][..]])
+            .collect();
+        let b0s = if scaled.is_empty() {
+            b0s
+        } else {
+            &scaled_refs[..]
+        };
         let k = b0s.len();
         let book = self.codebook();
         let s = self.image_size;
@@ -276,8 +293,8 @@ pub fn decode_tile_bytes(book: &Codebook, bytes: &[u8], h: usize, w: usize, out:
 }
 
 /// The matrix as the run time sees it: dense tiles decoded (skipped tiles
-/// are zero) plus the sparse part, three channels (a grey matrix's one
-/// channel three times).
+/// are zero) plus the sparse part, times the column scales where there are
+/// any, three channels (a grey matrix's one channel three times).
 pub fn decode(e: &Encoded) -> [Vec<f32>; 3] {
     let n = e.n;
     let s = e.image_size;
@@ -323,6 +340,16 @@ pub fn decode(e: &Encoded) -> [Vec<f32>; 3] {
                 // The dense texel at a sparse position decodes to exactly 0.
                 o[i * n + j] += sp.values[p * ch + k];
             }
+        }
+    }
+    // Column scales: T̃ = T' diag(s) (one f32 product per entry).
+    if !e.col_scale.is_empty() {
+        for o in &mut out {
+            o.par_chunks_mut(n.max(1)).for_each(|row| {
+                for (v, s) in row.iter_mut().zip(&e.col_scale) {
+                    *v *= s;
+                }
+            });
         }
     }
     if ch == 1 {
