@@ -202,6 +202,10 @@ fn with_the_exact_codec_the_permutation_undoes_exactly() {
     assert_eq!(out.report.codec.h_error, Some(0.0));
 }
 
+fn refs(t: &[Vec<f32>]) -> [&[f32]; 3] {
+    [&t[0][..], &t[1][..], &t[2][..]]
+}
+
 #[test]
 fn max_error_picks_a_setting_within_the_bound() {
     let (mut c, _) = config("bake-max-error");
@@ -219,58 +223,92 @@ fn max_error_picks_a_setting_within_the_bound() {
         .iter()
         .map(|b| std::array::from_fn(|ch| perm.apply_vec(&b[ch])))
         .collect();
-    // The bake encodes T' = T diag(1/s), s the patches' relative areas,
-    // and stores s with the matrix; its error measure multiplies s ∘ B0.
+    // The bake tries the plain matrix, then T' = T diag(1/s) with s the
+    // patches' relative areas (its error measure multiplying s ∘ B0), and
+    // keeps the cheaper within the bound, the scales' 4 n bytes counted.
     let area: Vec<f64> = perm.apply_vec(&out.patches.iter().map(|p| p.area).collect::<Vec<_>>());
     let s = bake::column_scales(&area);
-    assert_eq!(out.encoded.col_scale, s, "the stored column scales");
-    let t: Vec<Vec<f32>> = (0..3)
-        .map(|ch| {
-            let mut t = perm.apply_symmetric(out.transfer.channel(ch), n);
-            for (k, v) in t.iter_mut().enumerate() {
-                *v /= s[k % n];
-            }
-            t
-        })
+    let plain: Vec<Vec<f32>> = (0..3)
+        .map(|ch| perm.apply_symmetric(out.transfer.channel(ch), n))
         .collect();
-    let scaled: Vec<[Vec<f32>; 3]> = samples
+    let t_scaled: Vec<Vec<f32>> = plain
+        .iter()
+        .map(|t| t.iter().enumerate().map(|(k, v)| v / s[k % n]).collect())
+        .collect();
+    let s_samples: Vec<[Vec<f32>; 3]> = samples
         .iter()
         .map(|b| std::array::from_fn(|ch| b[ch].iter().zip(&s).map(|(x, y)| x * y).collect()))
         .collect();
-    let reference: Vec<[Vec<f64>; 3]> = scaled
-        .iter()
-        .map(|b| std::array::from_fn(|ch| encode::mat_vec(&t[ch], n, &b[ch])))
-        .collect();
-    // Measured again, independently of the bake: the same error (the
-    // stored matrix applies its scales to the unscaled samples).
-    let again = encode::h_error(&out.encoded, &reference, &samples);
-    assert_eq!(again, err);
-    // The rule (encode::choose): the cheapest passing setting, unless a
-    // BC1/BC4 setting passes within BLOCK_CODEC_SLACK times its bytes; then
-    // the cheapest such one.
+    let exact = |t: &[Vec<f32>], b: &[[Vec<f32>; 3]]| -> Vec<[Vec<f64>; 3]> {
+        b.iter()
+            .map(|b| std::array::from_fn(|ch| encode::mat_vec(&t[ch], n, &b[ch])))
+            .collect()
+    };
+    let (ref_plain, ref_scaled) = (exact(&plain, &samples), exact(&t_scaled, &s_samples));
+    let scaled_chosen = !out.encoded.col_scale.is_empty();
+    if scaled_chosen {
+        assert_eq!(out.encoded.col_scale, s, "the stored column scales");
+        assert!(out.report.codec.chosen_by.ends_with("columns scaled"));
+    }
+    // Measured again, independently of the bake: the same error (a scaled
+    // matrix applies its scales to the unscaled samples).
+    let reference = if scaled_chosen {
+        &ref_scaled
+    } else {
+        &ref_plain
+    };
+    assert_eq!(encode::h_error(&out.encoded, reference, &samples), err);
+    // The rule within each try (encode::choose): the cheapest passing
+    // setting, unless a BC1/BC4 setting passes within BLOCK_CODEC_SLACK
+    // times its bytes; then the cheapest such one. Checked on the plain
+    // try against every candidate.
     let is_block = |k: CodecKind| matches!(k, CodecKind::Bc1Log { .. } | CodecKind::Bc4Log { .. });
-    // The candidates below have no column scales; the same 4 n bytes of
-    // scales come with every one in the bake, so they do not change the
-    // choice.
-    let chosen = out.encoded.bytes_total() - 4 * n;
+    let (k0, e0, err0) =
+        encode::choose(refs(&plain), n, &samples, 0.05, &[]).expect("a plain setting passes");
     let mut cheapest = usize::MAX;
     let mut cheapest_block = usize::MAX;
     for kind in encode::default_candidates() {
-        let e = encode::encode(kind, [&t[0], &t[1], &t[2]], n).unwrap();
-        if encode::h_error(&e, &reference, &scaled) <= 0.05 {
+        let e = encode::encode(kind, refs(&plain), n).unwrap();
+        if encode::h_error(&e, &ref_plain, &samples) <= 0.05 {
             cheapest = cheapest.min(e.bytes_total());
             if is_block(kind) {
                 cheapest_block = cheapest_block.min(e.bytes_total());
             }
         }
     }
-    let slack = encode::BLOCK_CODEC_SLACK;
-    if cheapest_block as f64 <= slack * cheapest as f64 {
-        assert_eq!(chosen, cheapest_block, "the cheapest passing block setting");
-        assert!(is_block(out.encoded.kind));
+    if cheapest_block as f64 <= encode::BLOCK_CODEC_SLACK * cheapest as f64 {
+        assert_eq!(
+            e0.bytes_total(),
+            cheapest_block,
+            "the cheapest passing block setting"
+        );
+        assert!(is_block(k0));
     } else {
-        assert_eq!(chosen, cheapest, "the cheapest passing setting");
+        assert_eq!(e0.bytes_total(), cheapest, "the cheapest passing setting");
     }
+    // Then the scaled try over the log settings expected to cost no more,
+    // and the cheaper of the two.
+    let limit = encode::measure::expected_bytes_per_entry(k0);
+    let cheaper: Vec<CodecKind> = encode::default_candidates()
+        .into_iter()
+        .filter(|k| {
+            k.log_params().is_some() && encode::measure::expected_bytes_per_entry(*k) <= limit
+        })
+        .collect();
+    let want = match encode::choose(refs(&t_scaled), n, &s_samples, 0.05, &cheaper) {
+        Ok((_, e1, err1))
+            if e1.bytes_total() + 4 * n < e0.bytes_total()
+                || (e1.bytes_total() + 4 * n == e0.bytes_total() && err1 < err0) =>
+        {
+            (e1.bytes_total() + 4 * n, err1, true)
+        }
+        _ => (e0.bytes_total(), err0, false),
+    };
+    assert_eq!(
+        (out.encoded.bytes_total(), err, scaled_chosen),
+        want,
+        "the bake's choice"
+    );
 }
 
 #[test]

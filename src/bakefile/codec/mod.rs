@@ -34,11 +34,13 @@
 //! `s ∘ B0` (the decoded matrix is `T' diag(s)`). A column of `T` scales
 //! with the area of the patch it comes from, so patches of very different
 //! areas next to each other make one 4 × 4 block span more magnitudes than
-//! its log range holds; the bake divides each column by its patch's area
-//! relative to the largest (`bake::column_scales`). On Sponza at 3,946
+//! its log range holds; the bake also tries each setting on the matrix with
+//! every column divided by its patch's area relative to the largest
+//! (`bake::column_scales`) and keeps the cheaper. On Sponza at 3,946
 //! patches (areas from 1.4e-5 to 9.7 m²) that halves BC1's error of `H` at
 //! a given top fraction (2 %: 6.3 → 2.9 %), and the default error bound is
-//! met with half the sparse entries (`docs/runtime.md`).
+//! met with half the sparse entries; at 12,872 it does not help
+//! (`docs/runtime.md`).
 //!
 //! # Formats ([`CodecKind`])
 //!
@@ -578,11 +580,9 @@ pub struct Encoded {
     /// Per column `j`, the factor `s_j > 0` the stored matrix's column was
     /// divided by: the matrix is `T̃ = T' diag(s)`, with `T'` what the
     /// dense and sparse parts hold, so every product is `T' (s ∘ B0)`.
-    /// Empty: no column scaling (`s = 1`). The bake divides each column by
-    /// its patch's area relative to the largest: a column of `T` scales
-    /// with the area of the patch it comes from, and patches of very
-    /// different areas side by side make 4 × 4 blocks span more
-    /// magnitudes than a BC1 block's log range holds.
+    /// Empty: no column scaling (`s = 1`). The bake may divide each column
+    /// by its patch's area relative to the largest (module doc, "Column
+    /// scales").
     #[serde(skip)]
     pub col_scale: Vec<f32>,
     pub stats: EncodeStats,
