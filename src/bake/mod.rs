@@ -151,8 +151,8 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     // beside the codec's, tried where the error is measured and the codec
     // is a log one (a plain f32 or f16 matrix would only gain a rounding):
     // first the plain matrix, then, in place, `T' = T diag(1/s)` with the
-    // samples `s ∘ B0`; the cheaper result within the bound is kept (for a
-    // fixed codec, the smaller error). On Sponza at 3,946 patches the
+    // samples `s ∘ B0`; the cheaper result within the bound is kept, at
+    // equal bytes the smaller error (for a fixed codec, the smaller error). On Sponza at 3,946 patches the
     // scales halve BC1's error at a given top fraction; at 12,872 they
     // raise it a little (docs/runtime.md).
     let scales =
@@ -246,10 +246,12 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
                 .ok()
             };
             match scaled {
-                // The scales' own 4 n bytes counted.
+                // The cheaper matrix, or at equal bytes the smaller error;
+                // the scales' 4 bytes per patch (4/n bytes per entry) are
+                // not held against it.
                 Some((_, mut e1, err1))
-                    if e1.bytes_total() + 4 * n < e0.bytes_total()
-                        || (e1.bytes_total() + 4 * n == e0.bytes_total() && err1 < err0) =>
+                    if e1.bytes_total() < e0.bytes_total()
+                        || (e1.bytes_total() == e0.bytes_total() && err1 < err0) =>
                 {
                     e1.col_scale = scales;
                     (e1, Some(err1), format!("max-error {max}, columns scaled"))
