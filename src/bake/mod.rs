@@ -152,14 +152,15 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     // is a log one (a plain f32 or f16 matrix would only gain a rounding):
     // first the plain matrix, then, in place, `T' = T diag(1/s)` with the
     // samples `s ∘ B0`; the cheaper result within the bound is kept, at
-    // equal bytes the smaller error (for a fixed codec, the smaller error). On Sponza at 3,946 patches the
-    // scales halve BC1's error at a given top fraction; at 12,872 they
-    // raise it a little (docs/runtime.md).
+    // equal bytes the smaller error (for a fixed codec, the smaller
+    // error). On Sponza at 3,946 patches the scales halve BC1's error at a
+    // given top fraction; at 12,872, and on the interior, they raise it
+    // (docs/runtime.md).
     let scales =
         column_scales(&perm.apply_vec(&patches.iter().map(|p| p.area).collect::<Vec<f64>>()));
     let scaled_samples: Vec<[Vec<f32>; 3]> = b0_samples
         .iter()
-        .map(|b| std::array::from_fn(|c| b[c].iter().zip(&scales).map(|(x, s)| x * s).collect()))
+        .map(|b| crate::bakefile::codec::scaled_input([&b[0], &b[1], &b[2]], &scales))
         .collect();
     let sp = spinner("encode");
     let (encoded, h_error, chosen_by) = match config.codec {

@@ -43,6 +43,7 @@
 
 use crate::bakefile::codec::decode::{decode_tile_bytes, Codebook};
 use crate::bakefile::codec::rgb9e5;
+use crate::bakefile::codec::scaled_input;
 use crate::bakefile::codec::{DenseFormat, Encoded, SparseValues};
 use rayon::prelude::*;
 
@@ -449,15 +450,7 @@ impl CompressedGather {
         let n = self.n;
         // Column scales: the stored matrix multiplies s ∘ B0 (zero where
         // B0 is, so the active groups are the same).
-        let scaled: Option<[Vec<f32>; 3]> = (!self.col_scale.is_empty()).then(|| {
-            std::array::from_fn(|c| {
-                b0[c]
-                    .iter()
-                    .zip(&self.col_scale)
-                    .map(|(x, s)| x * s)
-                    .collect()
-            })
-        });
+        let scaled = (!self.col_scale.is_empty()).then(|| scaled_input(b0, &self.col_scale));
         let b0 = match &scaled {
             Some(v) => [&v[0][..], &v[1][..], &v[2][..]],
             None => b0,

@@ -73,7 +73,7 @@ impl Encoded {
             Vec::new()
         } else {
             b0s.iter()
-                .map(|b| std::array::from_fn(|c| self.scaled_input(b[c]).expect("scales")))
+                .map(|&b| super::scaled_input(b, &self.col_scale))
                 .collect()
         };
         let scaled_refs: Vec<[&[f32]; 3]> = scaled

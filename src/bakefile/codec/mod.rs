@@ -618,13 +618,6 @@ impl Encoded {
             + 4 * self.col_scale.len()
     }
 
-    /// `b` times the column scales ([`Encoded::col_scale`]): the vector the
-    /// stored matrix multiplies. `None` when the matrix has none.
-    pub fn scaled_input(&self, b: &[f32]) -> Option<Vec<f32>> {
-        (!self.col_scale.is_empty())
-            .then(|| b.iter().zip(&self.col_scale).map(|(x, s)| x * s).collect())
-    }
-
     pub fn bytes_total(&self) -> usize {
         self.bytes_dense() + self.bytes_sparse() + self.bytes_index()
     }
@@ -692,4 +685,12 @@ pub fn inverse_maxima(channels: &[&[f32]]) -> Vec<f32> {
             }
         })
         .collect()
+}
+
+/// The three channels of `b0` times the column scales `s`
+/// ([`Encoded::col_scale`]): what a column-scaled matrix multiplies (one
+/// f32 product per value; every decoder and the bake's error measure round
+/// it alike).
+pub fn scaled_input(b0: [&[f32]; 3], s: &[f32]) -> [Vec<f32>; 3] {
+    std::array::from_fn(|c| b0[c].iter().zip(s).map(|(x, s)| x * s).collect())
 }
