@@ -231,7 +231,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
                 None
             } else {
                 scale_columns(&mut permuted, &scales, n);
-                encode::choose_with(
+                match encode::choose_with(
                     channels_of(&permuted),
                     n,
                     &scaled_samples,
@@ -243,8 +243,12 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
                             100.0 * err
                         ))
                     },
-                )
-                .ok()
+                ) {
+                    Ok(chosen) => Some(chosen),
+                    // No scaled setting within the bound: the plain one stays.
+                    Err(encode::measure::ChooseError::NoCandidate { .. }) => None,
+                    Err(e) => return Err(e.into()),
+                }
             };
             match scaled {
                 // The cheaper matrix, or at equal bytes the smaller error;
