@@ -43,11 +43,22 @@ fn gl_gather_matches_the_cpu_gather_within_the_decoders_rounding() {
         (&colour, CodecKind::F32, DenseFormat::F32, 3),
         (&grey, CodecKind::F32, DenseFormat::F32, 1),
     ] {
-        check(&gl, &rooms.f, n, albedo, kind, format, channels);
+        check(&gl, &rooms.f, n, albedo, kind, format, channels, false);
+    }
+    // Column scales (the bake's `s`, here over four decades): the stored
+    // matrix is T' = T diag(1/s) and both gathers multiply s ∘ B0.
+    for (albedo, kind, format, channels) in [
+        (&colour, CodecKind::default(), DenseFormat::Bc1, 3),
+        (&grey, CodecKind::default(), DenseFormat::Bc4, 1),
+        (&colour, CodecKind::F32, DenseFormat::F32, 3),
+    ] {
+        check(&gl, &rooms.f, n, albedo, kind, format, channels, true);
     }
 }
 
-/// One matrix: GL against CPU over three lightings (module doc).
+/// One matrix: GL against CPU over three lightings (module doc), with
+/// column scales when `scaled`.
+#[allow(clippy::too_many_arguments)]
 fn check(
     gl: &Headless,
     f: &[f32],
@@ -56,6 +67,7 @@ fn check(
     kind: CodecKind,
     format: DenseFormat,
     channels: usize,
+    scaled: bool,
 ) {
     let t: Vec<Vec<f32>> = (0..3)
         .map(|c| {
@@ -67,7 +79,23 @@ fn check(
                 .collect()
         })
         .collect();
-    let e = encode::encode(kind, [&t[0], &t[1], &t[2]], n).unwrap();
+    let s: Vec<f32> = (0..n)
+        .map(|j| {
+            if scaled {
+                10f32.powf(-4.0 * ((j * 29) % n) as f32 / n as f32)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let t: Vec<Vec<f32>> = t
+        .iter()
+        .map(|t| t.iter().enumerate().map(|(k, v)| v / s[k % n]).collect())
+        .collect();
+    let mut e = encode::encode(kind, [&t[0], &t[1], &t[2]], n).unwrap();
+    if scaled {
+        e.col_scale = s;
+    }
     assert_eq!((e.format, e.channels), (format, channels));
     assert!(
         e.index.cols.len() < e.index.tiles_per_side.pow(2),
@@ -134,7 +162,7 @@ fn check(
         let h_all = g.gather(&gl.gl, b, &all).unwrap();
         assert_eq!(h_all, h_gl, "case {case}: skipping changed H");
         println!(
-            "{kind}, case {case}: {} of {} tile columns active; worst |GL - CPU| / bound = {worst:.2e} ({k} byte step(s) = {:.2} %)",
+            "{kind} (column scales {scaled}), case {case}: {} of {} tile columns active; worst |GL - CPU| / bound = {worst:.2e} ({k} byte step(s) = {:.2} %)",
             active.mask.iter().filter(|&&m| m != 0).count(),
             active.mask.len(),
             100.0 * step
