@@ -289,13 +289,10 @@ fn max_error_picks_a_setting_within_the_bound() {
     }
     // Then the scaled try over the log settings expected to cost no more,
     // and the cheaper of the two.
-    let limit = encode::measure::expected_bytes_per_entry(k0);
-    let cheaper: Vec<CodecKind> = encode::default_candidates()
-        .into_iter()
-        .filter(|k| {
-            k.log_params().is_some() && encode::measure::expected_bytes_per_entry(*k) <= limit
-        })
-        .collect();
+    let cheaper = encode::measure::log_candidates_no_dearer_than(k0);
+    assert!(cheaper.iter().all(|k| k.log_params().is_some()
+        && encode::measure::expected_bytes_per_entry(*k)
+            <= encode::measure::expected_bytes_per_entry(k0)));
     let want = match encode::choose(refs(&t_scaled), n, &s_samples, 0.05, &cheaper) {
         Ok((_, e1, err1))
             if e1.bytes_total() < e0.bytes_total()

@@ -219,14 +219,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
             )?;
             // Scaled, the log settings expected to cost no more than the
             // plain choice.
-            let limit = encode::measure::expected_bytes_per_entry(k0);
-            let cheaper: Vec<crate::bakefile::codec::CodecKind> = encode::default_candidates()
-                .into_iter()
-                .filter(|k| {
-                    k.log_params().is_some()
-                        && encode::measure::expected_bytes_per_entry(*k) <= limit
-                })
-                .collect();
+            let cheaper = encode::measure::log_candidates_no_dearer_than(k0);
             let scaled = if cheaper.is_empty() {
                 None
             } else {

@@ -444,25 +444,8 @@ pub fn validate(bf: &BakeFile, file: &str) -> Result<(), BakeFileError> {
         ));
     }
 
-    let cs = &bf.codec.col_scale;
-    if !cs.is_empty() && cs.len() != n {
-        return Err(invalid(
-            file,
-            tag::COLUMN_SCALES,
-            format!("{} column scales for {n} patches", cs.len()),
-        ));
-    }
-    if let Some((j, v)) = cs
-        .iter()
-        .enumerate()
-        .find(|(_, v)| !(v.is_finite() && **v > 0.0))
-    {
-        return Err(invalid(
-            file,
-            tag::COLUMN_SCALES,
-            format!("column {j}'s scale is {v}: must be finite and > 0"),
-        ));
-    }
+    codec::blob::check_col_scale(&bf.codec.col_scale, n)
+        .map_err(|d| invalid(file, tag::COLUMN_SCALES, d))?;
 
     bf.surface_map
         .check(n)

@@ -295,6 +295,17 @@ pub fn choose_with(
     Ok(passing.swap_remove(block.unwrap_or(cheapest)))
 }
 
+/// The log settings among the [`default_candidates`] expected to cost no
+/// more than `kind`: what the bake tries on the column-scaled matrix after
+/// choosing `kind` on the plain one (`bake::run`).
+pub fn log_candidates_no_dearer_than(kind: CodecKind) -> Vec<CodecKind> {
+    let limit = expected_bytes_per_entry(kind);
+    default_candidates()
+        .into_iter()
+        .filter(|k| k.log_params().is_some() && expected_bytes_per_entry(*k) <= limit)
+        .collect()
+}
+
 /// The bytes per matrix entry a setting is expected to take for an RGB
 /// matrix without zero tiles (module doc of the codec: the dense part's
 /// rate plus, per sparse position, a 2-byte column and its values), used to

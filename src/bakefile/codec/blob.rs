@@ -246,29 +246,10 @@ impl Encoded {
         if self.scale.iter().any(|s| !s.is_finite()) || !self.log_range.is_finite() {
             return bad("non-finite scale".into());
         }
-        if !self.col_scale.is_empty() {
-            if self.col_scale.len() != self.n {
-                return Err(CodecDataError {
-                    section: "CCOL",
-                    detail: format!(
-                        "{} column scales for {} patches",
-                        self.col_scale.len(),
-                        self.n
-                    ),
-                });
-            }
-            if let Some((j, v)) = self
-                .col_scale
-                .iter()
-                .enumerate()
-                .find(|(_, v)| !(v.is_finite() && **v > 0.0))
-            {
-                return Err(CodecDataError {
-                    section: "CCOL",
-                    detail: format!("column {j}'s scale is {v}: must be finite and > 0"),
-                });
-            }
-        }
+        check_col_scale(&self.col_scale, n).map_err(|detail| CodecDataError {
+            section: "CCOL",
+            detail,
+        })?;
         Ok(())
     }
 
@@ -507,5 +488,22 @@ impl Encoded {
             return Err(bad("DENS", format!("value {v} is not finite and ≥ 0")));
         }
         Ok(e)
+    }
+}
+
+/// The column scales' rule ([`Encoded::col_scale`]): none, or one finite
+/// value > 0 per patch; the message names the first fault. Shared by the
+/// matrix's check and the bake file's validation before writing.
+pub fn check_col_scale(s: &[f32], n: usize) -> Result<(), String> {
+    if !s.is_empty() && s.len() != n {
+        return Err(format!("{} column scales for {n} patches", s.len()));
+    }
+    match s
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(v.is_finite() && **v > 0.0))
+    {
+        Some((j, v)) => Err(format!("column {j}'s scale is {v}: must be finite and > 0")),
+        None => Ok(()),
     }
 }
