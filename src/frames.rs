@@ -34,9 +34,40 @@ pub(crate) fn bake_for(
     Ok(path)
 }
 
-/// The camera/lights file: given, or the scene's `NAME.json`.
-pub(crate) fn camera_lights(given: Option<PathBuf>, scene: &Path) -> anyhow::Result<SceneConfig> {
-    let path = given.unwrap_or_else(|| scene.with_extension("json"));
+/// The camera/lights file: given, or the scene's `NAME.json`, or, where the
+/// scene has none, a default made for the scene
+/// ([`radiosity::core::default_view`], said on stderr). `scene` is the
+/// loaded scene at `scene_path` where the caller has it (else it is loaded
+/// when needed).
+pub(crate) fn camera_lights(
+    given: Option<PathBuf>,
+    scene_path: &Path,
+    scene: Option<&scene::Scene>,
+) -> anyhow::Result<SceneConfig> {
+    let beside = scene_path.with_extension("json");
+    if given.is_none() && !beside.exists() {
+        let loaded;
+        let scene = match scene {
+            Some(s) => s,
+            None => {
+                loaded = scene::load(scene_path).with_context(|| {
+                    format!(
+                        "loading the scene {} to choose a camera and lights",
+                        scene_path.display()
+                    )
+                })?;
+                &loaded
+            }
+        };
+        let (config, _) = radiosity::core::default_view::default_config(scene);
+        eprintln!(
+            "no camera-and-lights file {} (give one with --camera-lights): {}",
+            beside.display(),
+            config.description
+        );
+        return Ok(config);
+    }
+    let path = given.unwrap_or(beside);
     radiosity::core::scene_config::load(&path).with_context(|| {
         format!(
             "reading the camera and lights {} (give another with --camera-lights)",
@@ -81,7 +112,7 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
     }
     let (baked, scene, scene_path) =
         load_bake(&args.input, args.patches, &args.device, args.scene.clone())?;
-    let config = camera_lights(args.camera_lights.clone(), &scene_path)?;
+    let config = camera_lights(args.camera_lights.clone(), &scene_path, Some(&scene))?;
     let options = RuntimeOptions {
         samples: args.samples,
         ..RuntimeOptions::default()
@@ -288,7 +319,7 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
         .camera_lights
         .clone()
         .unwrap_or_else(|| scene_path.with_extension("json"));
-    let config = camera_lights(Some(config_path.clone()), &scene_path)?;
+    let config = camera_lights(args.camera_lights.clone(), &scene_path, Some(&scene))?;
     let title = format!(
         "radiosity: {}",
         scene_path

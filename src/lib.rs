@@ -16,7 +16,8 @@
 //!    └─────────┴───────┬─────────┴─────┴──────────┴────────┘
 //!                      ▼
 //!                    core  (scene, lights, patches, math, BVH, direct
-//!                           light, permutation, OpenCL layer, .npy)
+//!                           light, permutation, OpenCL layer, .npy,
+//!                           the default camera and lights)
 //! ```
 //!
 //! Which module may import which (`docs/architecture.md` has the same

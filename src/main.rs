@@ -708,7 +708,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     bail!("--paths must be at least 1");
                 }
                 let info = Baked::load(&bake)?.info;
-                let config = frames::camera_lights(cl, &resolve_scene_path(&bake, &info.scene))?;
+                let config =
+                    frames::camera_lights(cl, &resolve_scene_path(&bake, &info.scene), None)?;
                 let sel = if first_reflection {
                     Some(DeviceSelection::from_flag_or_env(device.device)?)
                 } else {
@@ -940,7 +941,7 @@ fn export_mitsuba(
 ) -> anyhow::Result<()> {
     let scene = radiosity::core::scene::load(scene_path)
         .with_context(|| format!("loading {}", scene_path.display()))?;
-    let config = frames::camera_lights(camera_lights, scene_path)?;
+    let config = frames::camera_lights(camera_lights, scene_path, Some(&scene))?;
     let options = radiosity::mitsuba::ExportOptions {
         width,
         height,
@@ -995,7 +996,11 @@ fn bench_frame(
         bail!("--repeat, --width and --height must be at least 1");
     }
     let info = Baked::load(bake)?.info;
-    let config = frames::camera_lights(camera_lights_file, &resolve_scene_path(bake, &info.scene))?;
+    let config = frames::camera_lights(
+        camera_lights_file,
+        &resolve_scene_path(bake, &info.scene),
+        None,
+    )?;
     let options = bench::frame::FrameBenchOptions {
         repeat,
         width,

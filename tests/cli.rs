@@ -416,6 +416,24 @@ fn render_bakes_or_reuses_and_writes_png_and_pfm() {
     let o = run(&["--samples", "0"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("--samples"), "{}", stderr(&o));
+    // A scene without its camera-and-lights file gets a default one, said
+    // on stderr; a file that is named but missing is an error naming it.
+    std::fs::remove_file(dir.join("cornell_box.json")).unwrap();
+    std::fs::remove_file(&png).unwrap();
+    let o = run(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("no camera-and-lights file")
+            && stderr(&o).contains("default for cornell_box.obj"),
+        "{}",
+        stderr(&o)
+    );
+    let img = image::open(&png).unwrap().to_rgb8();
+    assert!(img.pixels().any(|p| p[0] > 30), "the default view is black");
+    let missing = dir.join("missing.json");
+    let o = run(&["--camera-lights", missing.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("missing.json"), "{}", stderr(&o));
 }
 
 /// `info` on a file named `.rad` that is not a bake file says so (it does
