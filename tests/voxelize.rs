@@ -352,6 +352,53 @@ fn scene_smaller_than_one_voxel_gives_six_patches() {
     assert_eq!(v.patches.len(), 6);
 }
 
+/// A room (six faces, inward) asked for fewer patches than it has faces,
+/// and voxels far larger than it. The count search used to stop at a
+/// voxelization with no patch (0 patches counted as 1, "on target" for a
+/// target of 1) and the form factors then panicked; now the search keeps
+/// looking at smaller voxels, and a voxel size at which every surface is
+/// covered by the opposite wall is an error naming the size and the
+/// scene's extent.
+#[test]
+fn tiny_patch_targets_bake_and_huge_voxels_are_refused() {
+    let (a, x, y, z) = ([0.6; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+    let h = [1.65, 1.35, 2.05];
+    let c = [0.3, 1.35, -0.7];
+    let at = |axis: [f64; 3], half: f64, sign: f64| -> [f64; 3] {
+        std::array::from_fn(|k| c[k] + sign * half * axis[k])
+    };
+    // Inward faces: each quad's u × v is the inward normal.
+    let faces = vec![
+        quad(at(x, h[0], 1.0), z, y, h[2], h[1], a),
+        quad(at(x, h[0], -1.0), y, z, h[1], h[2], a),
+        quad(at(y, h[1], 1.0), x, z, h[0], h[2], a),
+        quad(at(y, h[1], -1.0), z, x, h[2], h[0], a),
+        quad(at(z, h[2], 1.0), y, x, h[1], h[0], a),
+        quad(at(z, h[2], -1.0), x, y, h[0], h[1], a),
+    ];
+    let scene = scene::load(&write_quads("tiny-target", &faces)).unwrap();
+    for target in [1, 2, 3] {
+        let v = voxelize::voxelize(&scene, Resolution::Patches(target), &Backend::Cpu)
+            .unwrap_or_else(|e| panic!("target {target}: {e}"));
+        assert!(!v.patches.is_empty(), "target {target}: no patches");
+        // Every face keeps its light: the patches cover the room's area.
+        let area: f64 = v.patches.iter().map(|p| p.area).sum();
+        let room = 2.0 * (4.0 * h[0] * h[1] + 4.0 * h[1] * h[2] + 4.0 * h[2] * h[0]);
+        assert!(
+            (area / room - 1.0).abs() < 1e-4,
+            "target {target}: area {area} of {room}"
+        );
+    }
+    let e = voxelize::voxelize(&scene, Resolution::VoxelSize(100.0), &Backend::Cpu)
+        .err()
+        .expect("voxels 25 times the room are refused");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("no patches at voxel size 1.000e2") && msg.contains("extent is 4.100e0"),
+        "{msg}"
+    );
+}
+
 #[test]
 fn fine_grids_use_memory_proportional_to_occupied_voxels() {
     // Two small triangles at opposite corners of a 1000-unit box at voxel

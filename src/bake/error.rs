@@ -19,6 +19,21 @@ pub enum BakeError {
         value: String,
         expected: String,
     },
+    /// A voxel size at which no surface makes a patch: voxels much larger
+    /// than the scene, in which every surface lies within the covering gap
+    /// of another (or is a sliver). A smaller voxel size (more patches)
+    /// bakes.
+    #[error(
+        "voxelize: no patches at voxel size {voxel_size:.3e}: of {pieces} pieces, {covered} are covered (another surface within the covering gap of {gap} voxels) and {slivers} are slivers; the scene's largest extent is {extent:.3e}, so the voxel size must be well below it"
+    )]
+    NoPatches {
+        voxel_size: f64,
+        pieces: u64,
+        covered: u64,
+        slivers: u64,
+        gap: f64,
+        extent: f64,
+    },
     /// A request beyond a limit of a stage (sizes, index ranges): fewer
     /// patches or a coarser voxel size fits.
     #[error("{stage}: {detail}")]

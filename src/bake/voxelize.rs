@@ -269,8 +269,8 @@ pub fn voxelize(
     resolution: Resolution,
     backend: &Backend,
 ) -> Result<Voxelization, BakeError> {
-    match resolution {
-        Resolution::VoxelSize(size) => voxelize_at(scene, size, backend),
+    let v = match resolution {
+        Resolution::VoxelSize(size) => voxelize_at(scene, size, backend)?,
         Resolution::Patches(target) => {
             if target == 0 {
                 return Err(BakeError::InvalidOption {
@@ -290,27 +290,61 @@ pub fn voxelize(
             let mut size = (scene.surface_area() / target as f64).sqrt();
             let mut search = Vec::new();
             let mut best: Option<Voxelization> = None;
+            // A pass is taken only if the share of the scene's area it
+            // covers (module doc, "Covered geometry") has not collapsed:
+            // at most twice the least any pass covered, plus 5 % of the
+            // area. Hidden area grows slowly with the voxel size in real
+            // scenes (the interior: 11 % at 0.69 m, 18 % at 14 m), but once
+            // voxels are so coarse that the covering gap (COVER_GAP voxels)
+            // spans a room, its floor and ceiling cover each other and
+            // their light is lost (a room asked for 3 patches lost 40 % of
+            // its area), however close the count is to the target. A pass
+            // without patches is never taken.
+            let share =
+                |v: &Voxelization| v.stats.covered_area / v.stats.scene_area.max(f64::MIN_POSITIVE);
+            let err_of = |v: &Voxelization| (v.stats.patches as f64 / target as f64 - 1.0).abs();
+            let mut least = f64::INFINITY;
             for _ in 0..6 {
                 let v = voxelize_at(scene, size, backend)?;
-                let n = v.stats.patches.max(1);
                 search.push((size, v.stats.patches));
-                let err = (n as f64 / target as f64 - 1.0).abs();
-                let better = best.as_ref().is_none_or(|b| {
-                    err < (b.stats.patches.max(1) as f64 / target as f64 - 1.0).abs()
-                });
-                if better {
+                least = least.min(share(&v));
+                let eligible =
+                    |v: &Voxelization| v.stats.patches > 0 && share(v) <= 2.0 * least + 0.05;
+                let (ok, err, empty) = (eligible(&v), err_of(&v), v.stats.patches == 0);
+                let better = ok
+                    && best
+                        .as_ref()
+                        .is_none_or(|b| !eligible(b) || err < err_of(b));
+                if better || best.is_none() {
                     best = Some(v);
                 }
-                if err < 0.05 {
+                if empty {
+                    // No count to correct from: smaller voxels.
+                    size *= 0.25;
+                    continue;
+                }
+                if ok && err < 0.05 {
                     break;
                 }
                 size *= search_step(&search, target);
             }
             let mut best = best.expect("at least one pass ran");
             best.stats.search = search;
-            Ok(best)
+            best
         }
+    };
+    if v.stats.patches == 0 {
+        let (lo, hi) = scene.bounds();
+        return Err(BakeError::NoPatches {
+            voxel_size: v.stats.voxel_size,
+            pieces: v.stats.pieces,
+            covered: v.stats.covered_pieces,
+            slivers: v.stats.sliver_pieces,
+            gap: COVER_GAP,
+            extent: (0..3).map(|a| (hi[a] - lo[a]) as f64).fold(0.0, f64::max),
+        });
     }
+    Ok(v)
 }
 
 /// The factor the voxel size is multiplied by after the passes `search`

@@ -129,7 +129,7 @@ pub fn form_factors(
     let mut rows: Vec<RowCounts> = Vec::with_capacity(n);
     // Rows in chunks, so that progress can be reported.
     let chunk = 256usize;
-    for (ci, block) in counts.chunks_mut(chunk * n).enumerate() {
+    for (ci, block) in counts.chunks_mut((chunk * n).max(1)).enumerate() {
         let r: Vec<RowCounts> = block
             .par_chunks_mut(n)
             .enumerate()
