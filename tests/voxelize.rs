@@ -389,9 +389,9 @@ fn tiny_patch_targets_bake_and_huge_voxels_are_refused() {
             "target {target}: area {area} of {room}"
         );
     }
-    let e = voxelize::voxelize(&scene, Resolution::VoxelSize(100.0), &Backend::Cpu)
-        .err()
-        .expect("voxels 25 times the room are refused");
+    let Err(e) = voxelize::voxelize(&scene, Resolution::VoxelSize(100.0), &Backend::Cpu) else {
+        panic!("voxels 25 times the room are not refused");
+    };
     let msg = e.to_string();
     assert!(
         msg.contains("no patches at voxel size 1.000e2") && msg.contains("extent is 4.100e0"),
