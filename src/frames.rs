@@ -158,6 +158,9 @@ pub(crate) fn load_bake(
             scene_path.display()
         )
     })?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
     let hash = bakefile::SceneHash::of_scene(&scene)?;
     let diff = baked.scene_hash.differences(&hash);
     if !diff.is_empty() {

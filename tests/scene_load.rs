@@ -137,6 +137,65 @@ fn undefined_material_warns_and_is_counted_once() {
     );
 }
 
+/// A room 3.3 × 2.7 × 4.1 m with a table top 4 cm thick, written at
+/// survey coordinates (5.4e6 m north, where `f32` spacing is 0.5 m): the
+/// loader warns that storing its coordinates distorts it, naming the
+/// largest change, its line and the remedy. The same room near the origin
+/// and 1 km from it (spacing 61 µm, 1.5e-5 of its extent) does not warn.
+#[test]
+fn coordinates_that_f32_distorts_are_a_warning() {
+    let room = |o: [f64; 3]| -> String {
+        let mut v = Vec::new();
+        for &(x, y, z) in &[
+            (0.0, 0.0, 0.0),
+            (3.3, 0.0, 0.0),
+            (3.3, 2.7, 0.0),
+            (0.0, 2.7, 0.0),
+            (0.0, 0.0, 4.1),
+            (3.3, 0.0, 4.1),
+            (3.3, 2.7, 4.1),
+            (0.0, 2.7, 4.1),
+            (1.2, 0.70, 1.5),
+            (2.0, 0.70, 1.5),
+            (2.0, 0.74, 2.3),
+            (1.2, 0.74, 2.3),
+        ] {
+            v.push(format!(
+                "v {:.4} {:.4} {:.4}\n",
+                x + o[0],
+                y + o[1],
+                z + o[2]
+            ));
+        }
+        v.concat()
+            + "f 1 2 3 4\nf 5 8 7 6\nf 1 5 6 2\nf 4 3 7 8\nf 1 4 8 5\nf 2 6 7 3\nf 9 10 11 12\n"
+    };
+    let survey = room([512_345.0, 87.0, 5_412_345.0]);
+    let (_d1, p1) = write_files("survey", &[("scene.obj", &survey)]);
+    let scene = scene::load(&p1).unwrap();
+    let w = scene
+        .warnings
+        .iter()
+        .find(|w| w.contains("32-bit floats"))
+        .unwrap_or_else(|| panic!("no precision warning: {:?}", scene.warnings));
+    // The table's far edge, z = 5412347.3, is stored as 5412347.5 (line
+    // 11); the walls' 5412349.1 as 5412349.0, a smaller change.
+    assert!(
+        w.contains("scene.obj") && w.contains("line 11") && w.contains("near the origin"),
+        "{w}"
+    );
+    assert!(w.contains("change by up to 2.000e-1"), "{w}");
+    for (tag, o) in [("local", [0.0; 3]), ("km", [1000.0, 0.0, -1000.0])] {
+        let (_d, p) = write_files(tag, &[("scene.obj", &room(o))]);
+        let scene = scene::load(&p).unwrap();
+        assert!(
+            !scene.warnings.iter().any(|w| w.contains("32-bit")),
+            "{tag}: {:?}",
+            scene.warnings
+        );
+    }
+}
+
 #[test]
 fn triangles_without_material_get_the_default_without_counting() {
     let (_dir, path) = write_files("no-material", &[("scene.obj", QUAD)]);

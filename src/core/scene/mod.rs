@@ -435,6 +435,9 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         Ok((models, _)) => models,
         Err(err) => return Err(obj_error(path, err, tap)),
     };
+    if let Some(w) = precision_warning(path, &st) {
+        st.warnings.push(w);
+    }
     if tap.lossy_lines > 0 {
         st.warnings.push(format!(
             "{}: {} line(s) were not valid UTF-8 and were decoded lossily (first: line {})",
@@ -444,6 +447,35 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         ));
     }
     build_scene(path, models, st)
+}
+
+/// Vertex coordinates change by more than this fraction of the scene's
+/// extent when stored as `f32` (every stage keeps positions in `f32`):
+/// 0.4 mm in a 4 m room. Coordinates far from the origin relative to the
+/// model's size do this (a building placed at its survey coordinates,
+/// 5.4e6 m north: `f32` spacing 0.5 m there).
+pub const PRECISION_WARNING: f64 = 1e-4;
+
+/// The warning for a file whose coordinates lose more than
+/// [`PRECISION_WARNING`] of the scene's extent as `f32`, naming the
+/// largest change, its first line and the remedy.
+fn precision_warning(path: &Path, st: &ObjState) -> Option<String> {
+    let extent = (0..3)
+        .map(|a| st.coord_hi[a] - st.coord_lo[a])
+        .fold(0.0, f64::max);
+    if st.counts[0] == 0 || st.rounding <= PRECISION_WARNING * extent {
+        return None;
+    }
+    let far = (0..3)
+        .map(|a| st.coord_lo[a].abs().max(st.coord_hi[a].abs()))
+        .fold(0.0, f64::max);
+    Some(format!(
+        "{}: coordinates up to {far:.6e} change by up to {:.3e} when stored as 32-bit floats ({:.3} % of the scene's extent {extent:.4e}; first at line {}): the geometry is distorted. Move the model near the origin (its bounds' centre at 0) before exporting",
+        path.display(),
+        st.rounding,
+        100.0 * st.rounding / extent,
+        st.rounding_line
+    ))
 }
 
 /// Turns a `tobj` failure on the OBJ into an error naming the file and line.
@@ -506,6 +538,12 @@ struct ObjState {
     warnings: Vec<String>,
     /// An error found in a material library; it stops the load.
     fatal: Option<SceneError>,
+    /// Vertex coordinates as the file writes them (f64): their bounds, the
+    /// largest change from storing them as `f32` and its first line.
+    coord_lo: [f64; 3],
+    coord_hi: [f64; 3],
+    rounding: f64,
+    rounding_line: usize,
 }
 
 /// Inspects one OBJ line before tobj parses it: counts records, mirrors
@@ -521,7 +559,28 @@ fn obj_line_hook(state: &RefCell<ObjState>, line_no: usize, buf: &[u8]) -> Resul
     let line = strip_newline(text);
     let mut words = line.split_whitespace();
     match words.next() {
-        Some("v") => st.counts[0] += 1,
+        Some("v") => {
+            st.counts[0] += 1;
+            // The coordinates in f64 (tobj keeps f32): how much storing
+            // them changes them ([`precision_warning`]).
+            for (a, w) in words.take(3).enumerate() {
+                if let Ok(x) = w.parse::<f64>() {
+                    if x.is_finite() {
+                        let r = (x - f64::from(x as f32)).abs();
+                        if r > st.rounding {
+                            st.rounding = r;
+                            st.rounding_line = line_no;
+                        }
+                        if st.counts[0] == 1 || x < st.coord_lo[a] {
+                            st.coord_lo[a] = x;
+                        }
+                        if st.counts[0] == 1 || x > st.coord_hi[a] {
+                            st.coord_hi[a] = x;
+                        }
+                    }
+                }
+            }
+        }
         Some("vt") => st.counts[1] += 1,
         Some("vn") => st.counts[2] += 1,
         Some("f") => {
