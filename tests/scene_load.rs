@@ -196,6 +196,56 @@ fn coordinates_that_f32_distorts_are_a_warning() {
     }
 }
 
+/// Polygon faces that are not convex (a C-shaped floor, an L-shaped wall
+/// with its notch at the first vertex) are cut into triangles that cover
+/// exactly their area, all wound like the face; tobj's fan gave the C an
+/// area of 11 instead of 7, with triangles wound backwards. Convex quads
+/// keep the fan.
+#[test]
+fn nonconvex_polygons_are_cut_into_their_own_area() {
+    // The C opens towards +x, in the floor plane, facing +y; then an L in
+    // the plane z = 0 facing +z whose first vertex is the reflex corner
+    // (a fan from it leaves the polygon); then a convex quad.
+    let obj = "v 0 0 0\nv 0 0 -3\nv 3 0 -3\nv 3 0 -2\nv 1 0 -2\nv 1 0 -1\nv 3 0 -1\nv 3 0 0\n\
+               f 1 8 7 6 5 4 3 2\n\
+               v 1 1 0\nv 1 3 0\nv 0 3 0\nv 0 0 0.0\nv 3 0 0.0\nv 3 1 0\n\
+               f 9 10 11 12 13 14\n\
+               v 5 0 0\nv 6 0 0\nv 6 0 -1\nv 5 0 -1\nf 15 16 17 18\n";
+    let (_dir, path) = write_files("nonconvex", &[("scene.obj", obj)]);
+    let scene = scene::load(&path).unwrap();
+    assert_eq!(scene.repairs.nonconvex_polygons, 2);
+    assert_eq!(scene.repairs.untriangulated_polygons, 0);
+    assert_eq!(scene.triangle_count(), 6 + 4 + 2);
+    let sum = |r: std::ops::Range<usize>| -> f64 { r.map(|t| scene.triangle_area(t)).sum() };
+    assert!((sum(0..6) - 7.0).abs() < 1e-6, "C area {}", sum(0..6));
+    assert!((sum(6..10) - 5.0).abs() < 1e-6, "L area {}", sum(6..10));
+    assert!(
+        (sum(10..12) - 1.0).abs() < 1e-6,
+        "quad area {}",
+        sum(10..12)
+    );
+    for (range, n) in [
+        (0..6, [0.0, 1.0, 0.0]),
+        (6..10, [0.0, 0.0, 1.0]),
+        (10..12, [0.0, 1.0, 0.0]),
+    ] {
+        for t in range {
+            let m = scene.triangle_normal(t);
+            assert!(
+                (m[0] * n[0] + m[1] * n[1] + m[2] * n[2] - 1.0).abs() < 1e-9,
+                "triangle {t} faces {m:?}, not {n:?}"
+            );
+        }
+    }
+    // The convex quad is the fan, as tobj made it.
+    let q = scene.triangles[10];
+    let p = |i: u32| scene.positions[i as usize];
+    assert_eq!(
+        (p(q[0]), p(q[1]), p(q[2])),
+        ([5.0, 0.0, 0.0], [6.0, 0.0, 0.0], [6.0, 0.0, -1.0])
+    );
+}
+
 #[test]
 fn triangles_without_material_get_the_default_without_counting() {
     let (_dir, path) = write_files("no-material", &[("scene.obj", QUAD)]);

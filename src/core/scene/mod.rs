@@ -36,6 +36,7 @@ use crate::core::math::{add, cross, dot, norm, sub};
 
 mod material;
 mod tap;
+pub mod triangulate;
 use material::resolve_materials;
 use tap::{coordinate_problem, locate_bad_face, locate_bad_vertex, LineTap, TapOutcome};
 
@@ -104,6 +105,14 @@ pub struct Repairs {
     /// points against the mean of the file's three vertex normals. Only
     /// reported: the geometry is kept as the file gives it.
     pub winding_disagrees_with_normals: u64,
+    /// Polygon faces (more than three vertices) that are not convex,
+    /// triangulated by ear clipping instead of a fan ([`triangulate`]).
+    pub nonconvex_polygons: u64,
+    /// Of those, polygons ear clipping could not cut (an outline that
+    /// crosses itself, or more than
+    /// [`triangulate::EAR_CLIPPING_MAX_VERTICES`] vertices): fanned, with a
+    /// warning, as they may cover the wrong area.
+    pub untriangulated_polygons: u64,
 }
 
 /// A loaded, validated triangle scene. All models of the OBJ are merged into
@@ -330,12 +339,14 @@ impl fmt::Display for SceneSummary {
         writeln!(
             f,
             "repairs     {} degenerate triangles skipped, {} albedo components clamped, \
-             {} missing materials, {} missing textures, {} triangles wound against their normals",
+             {} missing materials, {} missing textures, {} triangles wound against their normals, \
+             {} non-convex polygons cut by ear clipping",
             r.degenerate_triangles,
             r.clamped_albedo_components,
             r.missing_materials,
             r.missing_textures,
-            r.winding_disagrees_with_normals
+            r.winding_disagrees_with_normals,
+            r.nonconvex_polygons
         )?;
         if self.warnings.is_empty() {
             writeln!(f, "warnings    none")?;
@@ -369,7 +380,9 @@ pub fn srgb_to_linear(c: f64) -> f64 {
 #[allow(clippy::needless_update)]
 fn load_options() -> tobj::LoadOptions {
     tobj::LoadOptions {
-        triangulate: true,
+        // Polygons are triangulated by the loader (`triangulate`): tobj's
+        // fan is wrong for non-convex ones.
+        triangulate: false,
         single_index: true,
         ignore_points: true,
         ignore_lines: true,
@@ -544,6 +557,9 @@ struct ObjState {
     coord_hi: [f64; 3],
     rounding: f64,
     rounding_line: usize,
+    /// Polygon faces cut by ear clipping, and those it could not cut.
+    nonconvex_polygons: u64,
+    untriangulated_polygons: u64,
 }
 
 /// Inspects one OBJ line before tobj parses it: counts records, mirrors
@@ -842,15 +858,54 @@ fn build_scene(
             texcoords.resize(base + n, [0.0; 2]);
         }
         has_texcoord.resize(base + n, mesh_texcoords && n > 0);
-        for t in mesh.indices.chunks_exact(3) {
-            if t.iter().any(|&i| i as usize >= n) {
+        if mesh.indices.iter().any(|&i| i as usize >= n) {
+            return Err(invalid(format!(
+                "tobj produced an index past the vertices of model `{}`",
+                model.name
+            )));
+        }
+        // Faces by their vertex counts (none listed: all triangles).
+        let all_triangles = [3u32];
+        let arities = if mesh.face_arities.is_empty() {
+            &all_triangles[..]
+        } else {
+            &mesh.face_arities[..]
+        };
+        let mut at = 0usize;
+        let mut face = 0usize;
+        while at < mesh.indices.len() {
+            let k = arities[face.min(arities.len() - 1)] as usize;
+            face += 1;
+            let Some(f) = mesh.indices.get(at..at + k) else {
                 return Err(invalid(format!(
-                    "tobj produced an index past the vertices of model `{}`",
+                    "tobj produced a face past the indices of model `{}`",
                     model.name
                 )));
+            };
+            at += k;
+            if k < 3 {
+                continue;
             }
-            triangles.push([t[0], t[1], t[2]].map(|i| (base + i as usize) as u32));
-            tri_material.push(mesh.material_id);
+            let corners: Vec<[f64; 3]> = f
+                .iter()
+                .map(|&i| {
+                    let p = &mesh.positions[3 * i as usize..3 * i as usize + 3];
+                    [p[0], p[1], p[2]].map(f64::from)
+                })
+                .collect();
+            let (tris, how) = triangulate::triangulate(&corners);
+            match how {
+                triangulate::Triangulation::Fan => {}
+                triangulate::Triangulation::EarClipped => st.nonconvex_polygons += 1,
+                triangulate::Triangulation::Failed => {
+                    st.nonconvex_polygons += 1;
+                    st.untriangulated_polygons += 1;
+                }
+            }
+            for t in tris {
+                triangles.push(t.map(|c| (base + f[c] as usize) as u32));
+                tri_material.push(mesh.material_id);
+            }
         }
     }
     if misaligned_meshes > 0 {
@@ -912,8 +967,19 @@ fn build_scene(
     // Skip degenerate triangles, check winding against the file's normals.
     let mut repairs = Repairs {
         degenerate_triangles: st.short_faces,
+        nonconvex_polygons: st.nonconvex_polygons,
+        untriangulated_polygons: st.untriangulated_polygons,
         ..Repairs::default()
     };
+    if st.untriangulated_polygons > 0 {
+        st.warnings.push(format!(
+            "{} non-convex polygon face(s) could not be cut into triangles (an outline that \
+             crosses itself, or more than {} vertices) and were fanned from their first \
+             vertex, which may cover the wrong area: triangulate them in the modelling tool",
+            st.untriangulated_polygons,
+            triangulate::EAR_CLIPPING_MAX_VERTICES
+        ));
+    }
     let total = triangles.len();
     let mut kept: Vec<([u32; 3], Option<usize>)> = Vec::with_capacity(total);
     for (tri, mat) in triangles.into_iter().zip(tri_material) {
