@@ -687,8 +687,18 @@ impl CompressedGather {
             let mut bits = active.mask[tc];
             while bits != 0 {
                 let gl = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let (a, b) = (starts[gl] as usize, starts[gl + 1] as usize);
+                // The common case takes a run of consecutive active groups
+                // at once (their entries are contiguous, and in the same
+                // order): a group holds a few entries, and the cost per
+                // call showed (Sponza at 3,946 patches, every column: 2.69
+                // → 2.07–2.17 ms for the whole gather).
+                let run = if sp.rgb9e5 && out_ch == 3 {
+                    (bits >> gl).trailing_ones() as usize
+                } else {
+                    1
+                };
+                bits &= !(low_bits(run) << gl);
+                let (a, b) = (starts[gl] as usize, starts[gl + run] as usize);
                 stats.bytes_read += (b - a) as u64 * entry_bytes;
                 let jb = tc * tile;
                 if sp.rgb9e5 && out_ch == 3 {
