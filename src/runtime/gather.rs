@@ -691,7 +691,7 @@ impl CompressedGather {
                 // at once (their entries are contiguous, and in the same
                 // order): a group holds a few entries, and the cost per
                 // call showed (Sponza at 3,946 patches, every column: 2.69
-                // → 2.07–2.17 ms for the whole gather).
+                // → 2.07–2.23 ms for the whole gather).
                 let run = if sp.rgb9e5 && out_ch == 3 {
                     (bits >> gl).trailing_ones() as usize
                 } else {
