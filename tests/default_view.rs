@@ -85,6 +85,17 @@ fn middle_of_view(scene: &Scene, config: &SceneConfig) -> (bool, f64) {
     (front, e.iter().sum::<f64>())
 }
 
+/// Asserts that the middle of the view is the front of a surface and that
+/// it is lit (`what` names the case in messages).
+fn assert_sees_a_lit_front(scene: &Scene, config: &SceneConfig, what: &str) {
+    let (front, lit) = middle_of_view(scene, config);
+    assert!(
+        front,
+        "{what}: the middle of the view is the back of a surface"
+    );
+    assert!(lit > 0.0, "{what}: the middle of the view is not lit");
+}
+
 /// A room 3.3 × 2.7 × 4.1 (in units of `s`) turned 17° and placed far from
 /// the origin, split by a wall 2 mm thick with a door gap above it, a block
 /// standing in the larger part: the eye inside one part, clear of the
@@ -135,12 +146,7 @@ fn a_closed_room_gets_an_eye_inside_and_a_light_under_its_ceiling() {
                 "scale {s}: the light {light:?} is not inside the room"
             );
         }
-        let (front, lit) = middle_of_view(&scene, &config);
-        assert!(
-            front,
-            "scale {s}: the middle of the view is the back of a surface"
-        );
-        assert!(lit > 0.0, "scale {s}: the middle of the view is not lit");
+        assert_sees_a_lit_front(&scene, &config, &format!("scale {s}"));
     }
 }
 
@@ -161,11 +167,7 @@ fn a_courtyard_open_above_gets_a_sun() {
         direction[1] < -0.9,
         "the sun {direction:?} does not come from above"
     );
-    let (front, lit) = middle_of_view(&scene, &config);
-    assert!(
-        front && lit > 0.0,
-        "the middle of the view: front {front}, irradiance {lit}"
-    );
+    assert_sees_a_lit_front(&scene, &config, "courtyard");
 }
 
 /// Models with no inside: one quad facing `-z` (away from the preferred
@@ -198,11 +200,6 @@ fn models_without_an_inside_are_framed_from_outside() {
             (0..3).any(|a| p[a] < lo[a] || p[a] > hi[a]),
             "{tag}: the eye {p:?} is within the bounds"
         );
-        let (front, lit) = middle_of_view(&scene, &config);
-        assert!(
-            front,
-            "{tag}: the middle of the view is the back of a surface"
-        );
-        assert!(lit > 0.0, "{tag}: the middle of the view is not lit");
+        assert_sees_a_lit_front(&scene, &config, tag);
     }
 }

@@ -166,75 +166,78 @@ fn dot3(row: &[f32], x: &[Vec<f32>; 3]) -> [f32; 3] {
     out
 }
 
-/// [`dot3`] with AVX-512 written out: per 32 entries of the row two loads
-/// of `F`, six of `x` and six fused multiply-adds into six accumulators
-/// (two per channel, so that no add waits on the previous one's
-/// latency). Left to the compiler, `dot3` became 128-bit shuffles with
-/// the accumulators spilled, about 4× slower than this (2.2e9 against
-/// 8–9e9 entries/s on 2 threads): the baseline would have been a straw man.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn dot3_avx512(row: &[f32], x: &[Vec<f32>; 3]) -> [f32; 3] {
-    use std::arch::x86_64::*;
-    let n = row.len().min(x[0].len()).min(x[1].len()).min(x[2].len());
-    let (r, x0, x1, x2) = (row.as_ptr(), x[0].as_ptr(), x[1].as_ptr(), x[2].as_ptr());
-    let mut a = [_mm512_setzero_ps(); 6];
-    let pairs = n / 32;
-    for k in 0..pairs {
-        let o = 32 * k;
-        for h in 0..2 {
-            let o = o + 16 * h;
-            let f = _mm512_loadu_ps(r.add(o));
-            a[h] = _mm512_fmadd_ps(f, _mm512_loadu_ps(x0.add(o)), a[h]);
-            a[2 + h] = _mm512_fmadd_ps(f, _mm512_loadu_ps(x1.add(o)), a[2 + h]);
-            a[4 + h] = _mm512_fmadd_ps(f, _mm512_loadu_ps(x2.add(o)), a[4 + h]);
+/// A hand-vectorised [`dot3`] (`$lanes`-wide vectors of the named target
+/// feature): per `2 $lanes` entries of the row two loads of `F`, six of
+/// `x` and six fused multiply-adds into six accumulators (two per channel,
+/// so that no add waits on the previous one's latency); the lanes summed
+/// pairwise at the end, the tail in scalar code. Left to the compiler,
+/// `dot3` became 128-bit shuffles with the accumulators spilled and no
+/// FMA, about 4× slower (2.2e9 against 8–9e9 entries/s on 2 threads): the
+/// baseline would have been a straw man.
+macro_rules! dot3_kernel {
+    ($name:ident, $feature:literal, $lanes:literal, $vec:ty, $zero:ident, $load:ident, $fmadd:ident, $add:ident, $store:ident) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $feature)]
+        unsafe fn $name(row: &[f32], x: &[Vec<f32>; 3]) -> [f32; 3] {
+            use std::arch::x86_64::*;
+            let n = row.len().min(x[0].len()).min(x[1].len()).min(x[2].len());
+            let (r, x0, x1, x2) = (row.as_ptr(), x[0].as_ptr(), x[1].as_ptr(), x[2].as_ptr());
+            let mut a: [$vec; 6] = [$zero(); 6];
+            let pairs = n / (2 * $lanes);
+            for k in 0..pairs {
+                for h in 0..2 {
+                    let o = 2 * $lanes * k + $lanes * h;
+                    let f = $load(r.add(o));
+                    a[h] = $fmadd(f, $load(x0.add(o)), a[h]);
+                    a[2 + h] = $fmadd(f, $load(x1.add(o)), a[2 + h]);
+                    a[4 + h] = $fmadd(f, $load(x2.add(o)), a[4 + h]);
+                }
+            }
+            let mut out = [0.0f32; 3];
+            for (c, o) in out.iter_mut().enumerate() {
+                let mut l = [0.0f32; $lanes];
+                $store(l.as_mut_ptr(), $add(a[2 * c], a[2 * c + 1]));
+                let mut w = $lanes;
+                while w > 1 {
+                    w /= 2;
+                    for i in 0..w {
+                        l[i] += l[i + w];
+                    }
+                }
+                *o = l[0];
+            }
+            for j in 2 * $lanes * pairs..n {
+                for (c, o) in out.iter_mut().enumerate() {
+                    *o += row[j] * x[c][j];
+                }
+            }
+            out
         }
-    }
-    let mut out = [0.0f32; 3];
-    for (c, o) in out.iter_mut().enumerate() {
-        *o = _mm512_reduce_add_ps(_mm512_add_ps(a[2 * c], a[2 * c + 1]));
-    }
-    for j in 32 * pairs..n {
-        for (c, o) in out.iter_mut().enumerate() {
-            *o += row[j] * x[c][j];
-        }
-    }
-    out
+    };
 }
 
-/// [`dot3_avx512`] with 8-lane AVX2 vectors and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn dot3_avx2(row: &[f32], x: &[Vec<f32>; 3]) -> [f32; 3] {
-    use std::arch::x86_64::*;
-    let n = row.len().min(x[0].len()).min(x[1].len()).min(x[2].len());
-    let (r, x0, x1, x2) = (row.as_ptr(), x[0].as_ptr(), x[1].as_ptr(), x[2].as_ptr());
-    let mut a = [_mm256_setzero_ps(); 6];
-    let pairs = n / 16;
-    for k in 0..pairs {
-        let o = 16 * k;
-        for h in 0..2 {
-            let o = o + 8 * h;
-            let f = _mm256_loadu_ps(r.add(o));
-            a[h] = _mm256_fmadd_ps(f, _mm256_loadu_ps(x0.add(o)), a[h]);
-            a[2 + h] = _mm256_fmadd_ps(f, _mm256_loadu_ps(x1.add(o)), a[2 + h]);
-            a[4 + h] = _mm256_fmadd_ps(f, _mm256_loadu_ps(x2.add(o)), a[4 + h]);
-        }
-    }
-    let mut out = [0.0f32; 3];
-    for (c, o) in out.iter_mut().enumerate() {
-        let v = _mm256_add_ps(a[2 * c], a[2 * c + 1]);
-        let mut l = [0.0f32; 8];
-        _mm256_storeu_ps(l.as_mut_ptr(), v);
-        *o = ((l[0] + l[1]) + (l[2] + l[3])) + ((l[4] + l[5]) + (l[6] + l[7]));
-    }
-    for j in 16 * pairs..n {
-        for (c, o) in out.iter_mut().enumerate() {
-            *o += row[j] * x[c][j];
-        }
-    }
-    out
-}
+dot3_kernel!(
+    dot3_avx512,
+    "avx512f",
+    16,
+    __m512,
+    _mm512_setzero_ps,
+    _mm512_loadu_ps,
+    _mm512_fmadd_ps,
+    _mm512_add_ps,
+    _mm512_storeu_ps
+);
+dot3_kernel!(
+    dot3_avx2,
+    "avx2,fma",
+    8,
+    __m256,
+    _mm256_setzero_ps,
+    _mm256_loadu_ps,
+    _mm256_fmadd_ps,
+    _mm256_add_ps,
+    _mm256_storeu_ps
+);
 
 /// `f` (n × n, patch order) with row and column `i` taken from patch
 /// `order[i]`: the matrix order of a bake's run time.
