@@ -10,11 +10,13 @@
 //!   nearly no ray meets the back of a surface (the points within solids and
 //!   outside closed, inward-facing rooms do), at least half meet the front
 //!   of one, and no surface is closer than 3 % of the bounds' diagonal. The
-//!   best such point (most front hits, then most clearance) holds the eye,
-//!   which looks along the horizontal direction with the farthest front hit,
-//!   tilted 10° down. A ray straight up from it decides the light: a point
-//!   light three quarters of the way to the surface above it, or, where the
-//!   ray escapes (a courtyard open to the sky), a sun from above.
+//!   inside point with the most clearance (the middle of the largest room)
+//!   holds the eye. It looks along the horizontal direction (of 16) whose
+//!   view, a fan of rays over a 60° field tilted 10° down, meets the most
+//!   fronts of surfaces, then the farthest ones, from a step back towards
+//!   what lies behind it. A ray straight up from it decides the light: a
+//!   point light three quarters of the way to the surface above it, or,
+//!   where the ray escapes (a courtyard open to the sky), a sun from above.
 //! - **Outside**, where no grid point is inside (a single model, a flat
 //!   floor, a scene wound outward): the eye on the bounding sphere's
 //!   framing distance, from the direction of [`OUTSIDE_DIRECTIONS`] whose
@@ -182,7 +184,7 @@ pub fn default_config(scene: &Scene) -> (SceneConfig, Placement) {
         let fan = |h: [f64; 3]| -> (i64, f64) {
             let (right, cam_up) = basis(h, up);
             let mut score = (0i64, 0.0f64);
-            for &(x, y) in &sphere_grid(60.0) {
+            for &(x, y) in &view_grid(60.0) {
                 let y = y - tilt.tan();
                 let d = normalize(add(h, add(scale(right, x), scale(cam_up, y))));
                 match geometry.hit(centre_in, d) {
@@ -259,7 +261,7 @@ pub fn default_config(scene: &Scene) -> (SceneConfig, Placement) {
     // meets the most fronts of surfaces.
     let fov = 45f64;
     let distance = 0.5 * diag / (0.5 * fov.to_radians()).sin() * 1.1;
-    let grid = sphere_grid(fov);
+    let grid = view_grid(fov);
     let mut best = (0, i64::MIN);
     for (i, v) in OUTSIDE_DIRECTIONS.iter().enumerate() {
         let v = normalize(*v);
@@ -320,7 +322,7 @@ fn basis(forward: [f64; 3], up: [f64; 3]) -> ([f64; 3], [f64; 3]) {
 
 /// A 9 × 9 grid of image-plane offsets (tangents) over a square view of
 /// `fov` degrees.
-fn sphere_grid(fov: f64) -> Vec<(f64, f64)> {
+fn view_grid(fov: f64) -> Vec<(f64, f64)> {
     let t = (0.5 * fov.to_radians()).tan();
     (0..81)
         .map(|i| {
