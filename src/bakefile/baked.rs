@@ -229,15 +229,37 @@ pub fn stored_scene_path(bake: &Path, scene: &Path) -> String {
 }
 
 /// Where the scene stored in a bake file at `bake` lies: a relative path is
-/// relative to the bake file's directory.
+/// relative to the bake file's directory. `dir/../scene.obj` (a bake in the
+/// cache next to its scene) is shortened to `scene.obj`'s own directory
+/// where both name the same file (not across a symbolic link), so that
+/// messages name the scene as the user does.
 pub fn resolve_scene_path(bake: &Path, stored: &str) -> PathBuf {
     let p = PathBuf::from(stored);
     if p.is_absolute() {
         return p;
     }
-    match bake.parent() {
+    let joined = match bake.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.join(p),
         _ => p,
+    };
+    let mut short = PathBuf::new();
+    for c in joined.components() {
+        match c {
+            std::path::Component::ParentDir
+                if matches!(
+                    short.components().next_back(),
+                    Some(std::path::Component::Normal(_))
+                ) =>
+            {
+                short.pop();
+            }
+            std::path::Component::CurDir => {}
+            c => short.push(c.as_os_str()),
+        }
+    }
+    match (joined.canonicalize(), short.canonicalize()) {
+        (Ok(a), Ok(b)) if a == b && short != joined => short,
+        _ => joined,
     }
 }
 
