@@ -130,21 +130,15 @@ pub fn default_config(scene: &Scene) -> (SceneConfig, Placement) {
     let (lo, hi) = (lo.map(f64::from), hi.map(f64::from));
     let centre = scale(add(lo, hi), 0.5);
     let diag = norm(sub(hi, lo)).max(1e-30);
+    let bvh = Bvh::build(&scene.positions, &scene.triangles, [0.0; 3]);
     let geometry = Geometry {
-        bvh: Bvh::build(&scene.positions, &scene.triangles, [0.0; 3]),
-        normals: (0..scene.triangles.len())
-            .map(|t| scene.triangle_normal(t))
-            .collect(),
-        far: 4.0 * diag,
-    };
-    let geometry = Geometry {
-        normals: geometry
-            .bvh
+        normals: bvh
             .order
             .iter()
-            .map(|&t| geometry.normals[t as usize])
+            .map(|&t| scene.triangle_normal(t as usize))
             .collect(),
-        ..geometry
+        bvh,
+        far: 4.0 * diag,
     };
     let dirs = sphere(PROBE_RAYS);
     let points: Vec<[f64; 3]> = (0..GRID * GRID * GRID)

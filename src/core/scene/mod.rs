@@ -448,9 +448,6 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         Ok((models, _)) => models,
         Err(err) => return Err(obj_error(path, err, tap)),
     };
-    if let Some(w) = precision_warning(path, &st) {
-        st.warnings.push(w);
-    }
     if tap.lossy_lines > 0 {
         st.warnings.push(format!(
             "{}: {} line(s) were not valid UTF-8 and were decoded lossily (first: line {})",
@@ -459,7 +456,12 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
             tap.first_lossy_line
         ));
     }
-    build_scene(path, models, st)
+    let rounding = (st.rounding, st.rounding_line);
+    let mut scene = build_scene(path, models, st)?;
+    if let Some(w) = precision_warning(path, rounding, &scene) {
+        scene.warnings.push(w);
+    }
+    Ok(scene)
 }
 
 /// Vertex coordinates change by more than this fraction of the scene's
@@ -470,24 +472,21 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 pub const PRECISION_WARNING: f64 = 1e-4;
 
 /// The warning for a file whose coordinates lose more than
-/// [`PRECISION_WARNING`] of the scene's extent as `f32`, naming the
-/// largest change, its first line and the remedy.
-fn precision_warning(path: &Path, st: &ObjState) -> Option<String> {
-    let extent = (0..3)
-        .map(|a| st.coord_hi[a] - st.coord_lo[a])
-        .fold(0.0, f64::max);
-    if st.counts[0] == 0 || st.rounding <= PRECISION_WARNING * extent {
+/// [`PRECISION_WARNING`] of the loaded scene's extent as `f32` (`rounding`:
+/// the largest change and its first line), naming them and the remedy.
+fn precision_warning(path: &Path, (rounding, line): (f64, usize), scene: &Scene) -> Option<String> {
+    let (lo, hi) = scene.bounds();
+    let extent = (0..3).map(|a| f64::from(hi[a] - lo[a])).fold(0.0, f64::max);
+    if rounding <= PRECISION_WARNING * extent {
         return None;
     }
     let far = (0..3)
-        .map(|a| st.coord_lo[a].abs().max(st.coord_hi[a].abs()))
+        .map(|a| f64::from(lo[a].abs().max(hi[a].abs())))
         .fold(0.0, f64::max);
     Some(format!(
-        "{}: coordinates up to {far:.6e} change by up to {:.3e} when stored as 32-bit floats ({:.3} % of the scene's extent {extent:.4e}; first at line {}): the geometry is distorted. Move the model near the origin (its bounds' centre at 0) before exporting",
+        "{}: coordinates up to {far:.6e} change by up to {rounding:.3e} when stored as 32-bit floats ({:.3} % of the scene's extent {extent:.4e}; first at line {line}): the geometry is distorted. Move the model near the origin (its bounds' centre at 0) before exporting",
         path.display(),
-        st.rounding,
-        100.0 * st.rounding / extent,
-        st.rounding_line
+        100.0 * rounding / extent,
     ))
 }
 
@@ -551,15 +550,10 @@ struct ObjState {
     warnings: Vec<String>,
     /// An error found in a material library; it stops the load.
     fatal: Option<SceneError>,
-    /// Vertex coordinates as the file writes them (f64): their bounds, the
-    /// largest change from storing them as `f32` and its first line.
-    coord_lo: [f64; 3],
-    coord_hi: [f64; 3],
+    /// The largest change of a vertex coordinate from storing it as `f32`
+    /// (read in f64 from the file), and its first line.
     rounding: f64,
     rounding_line: usize,
-    /// Polygon faces cut by ear clipping, and those it could not cut.
-    nonconvex_polygons: u64,
-    untriangulated_polygons: u64,
 }
 
 /// Inspects one OBJ line before tobj parses it: counts records, mirrors
@@ -579,21 +573,11 @@ fn obj_line_hook(state: &RefCell<ObjState>, line_no: usize, buf: &[u8]) -> Resul
             st.counts[0] += 1;
             // The coordinates in f64 (tobj keeps f32): how much storing
             // them changes them ([`precision_warning`]).
-            for (a, w) in words.take(3).enumerate() {
-                if let Ok(x) = w.parse::<f64>() {
-                    if x.is_finite() {
-                        let r = (x - f64::from(x as f32)).abs();
-                        if r > st.rounding {
-                            st.rounding = r;
-                            st.rounding_line = line_no;
-                        }
-                        if st.counts[0] == 1 || x < st.coord_lo[a] {
-                            st.coord_lo[a] = x;
-                        }
-                        if st.counts[0] == 1 || x > st.coord_hi[a] {
-                            st.coord_hi[a] = x;
-                        }
-                    }
+            for x in words.take(3).filter_map(|w| w.parse::<f64>().ok()) {
+                let r = (x - f64::from(x as f32)).abs();
+                if r > st.rounding {
+                    st.rounding = r;
+                    st.rounding_line = line_no;
                 }
             }
         }
@@ -828,6 +812,8 @@ fn build_scene(
     let mut triangles: Vec<[u32; 3]> = Vec::new();
     let mut tri_material: Vec<Option<usize>> = Vec::new();
     let mut misaligned_meshes = 0usize;
+    // Polygon faces cut by ear clipping, and those it could not cut.
+    let (mut nonconvex, mut untriangulated) = (0u64, 0u64);
     for model in &models {
         let mesh = &model.mesh;
         let n = mesh.positions.len() / 3;
@@ -873,6 +859,10 @@ fn build_scene(
         };
         let mut at = 0usize;
         let mut face = 0usize;
+        let mut push = |t: [u32; 3]| {
+            triangles.push(t.map(|i| (base + i as usize) as u32));
+            tri_material.push(mesh.material_id);
+        };
         while at < mesh.indices.len() {
             let k = arities[face.min(arities.len() - 1)] as usize;
             face += 1;
@@ -883,6 +873,10 @@ fn build_scene(
                 )));
             };
             at += k;
+            if k == 3 {
+                push([f[0], f[1], f[2]]);
+                continue;
+            }
             if k < 3 {
                 continue;
             }
@@ -896,15 +890,14 @@ fn build_scene(
             let (tris, how) = triangulate::triangulate(&corners);
             match how {
                 triangulate::Triangulation::Fan => {}
-                triangulate::Triangulation::EarClipped => st.nonconvex_polygons += 1,
+                triangulate::Triangulation::EarClipped => nonconvex += 1,
                 triangulate::Triangulation::Failed => {
-                    st.nonconvex_polygons += 1;
-                    st.untriangulated_polygons += 1;
+                    nonconvex += 1;
+                    untriangulated += 1;
                 }
             }
             for t in tris {
-                triangles.push(t.map(|c| (base + f[c] as usize) as u32));
-                tri_material.push(mesh.material_id);
+                push(t.map(|c| f[c]));
             }
         }
     }
@@ -967,16 +960,16 @@ fn build_scene(
     // Skip degenerate triangles, check winding against the file's normals.
     let mut repairs = Repairs {
         degenerate_triangles: st.short_faces,
-        nonconvex_polygons: st.nonconvex_polygons,
-        untriangulated_polygons: st.untriangulated_polygons,
+        nonconvex_polygons: nonconvex,
+        untriangulated_polygons: untriangulated,
         ..Repairs::default()
     };
-    if st.untriangulated_polygons > 0 {
+    if untriangulated > 0 {
         st.warnings.push(format!(
             "{} non-convex polygon face(s) could not be cut into triangles (an outline that \
              crosses itself, or more than {} vertices) and were fanned from their first \
              vertex, which may cover the wrong area: triangulate them in the modelling tool",
-            st.untriangulated_polygons,
+            untriangulated,
             triangulate::EAR_CLIPPING_MAX_VERTICES
         ));
     }
