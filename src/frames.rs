@@ -46,34 +46,78 @@ pub(crate) fn camera_lights(
 ) -> anyhow::Result<SceneConfig> {
     let beside = scene_path.with_extension("json");
     if given.is_none() && !beside.exists() {
-        let loaded;
-        let scene = match scene {
-            Some(s) => s,
-            None => {
-                loaded = scene::load(scene_path).with_context(|| {
-                    format!(
-                        "loading the scene {} to choose a camera and lights",
-                        scene_path.display()
-                    )
-                })?;
-                &loaded
-            }
-        };
-        let (config, _) = radiosity::core::default_view::default_config(scene);
-        eprintln!(
-            "no camera-and-lights file {} (give one with --camera-lights): {}",
-            beside.display(),
-            config.description
-        );
-        return Ok(config);
+        return default_camera_lights(&beside, scene_path, scene);
     }
-    let path = given.unwrap_or(beside);
+    read_camera_lights(given.unwrap_or(beside))
+}
+
+/// The camera/lights file that [`camera_lights`] would read for `input`
+/// (a .rad or a scene), read *before* a bake: the one given, or the
+/// scene's `NAME.json` where the scene's path is known without the bake
+/// (`input` is a scene, or `scene` was given). A mistake in it then stops
+/// the command at once instead of after a bake of minutes. `None`: the
+/// file is chosen after the bake (a .rad names its scene) or made.
+pub(crate) fn camera_lights_before_bake(
+    given: Option<&Path>,
+    input: &Path,
+    scene: Option<&Path>,
+) -> anyhow::Result<Option<SceneConfig>> {
+    if let Some(path) = given {
+        return read_camera_lights(path.to_path_buf()).map(Some);
+    }
+    let is_rad = input
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("rad"))
+        || bakefile::is_bake_file(input);
+    let scene_path = match scene {
+        Some(s) => s,
+        None if !is_rad => input,
+        None => return Ok(None),
+    };
+    let beside = scene_path.with_extension("json");
+    if !beside.exists() {
+        return Ok(None);
+    }
+    read_camera_lights(beside).map(Some)
+}
+
+/// Reads and validates the camera/lights file at `path`.
+fn read_camera_lights(path: PathBuf) -> anyhow::Result<SceneConfig> {
     radiosity::core::scene_config::load(&path).with_context(|| {
         format!(
             "reading the camera and lights {} (give another with --camera-lights)",
             path.display()
         )
     })
+}
+
+/// A camera and lights made for the scene at `scene_path`, which has no
+/// `beside` file (said on stderr).
+fn default_camera_lights(
+    beside: &Path,
+    scene_path: &Path,
+    scene: Option<&scene::Scene>,
+) -> anyhow::Result<SceneConfig> {
+    let loaded;
+    let scene = match scene {
+        Some(s) => s,
+        None => {
+            loaded = scene::load(scene_path).with_context(|| {
+                format!(
+                    "loading the scene {} to choose a camera and lights",
+                    scene_path.display()
+                )
+            })?;
+            &loaded
+        }
+    };
+    let (config, _) = radiosity::core::default_view::default_config(scene);
+    eprintln!(
+        "no camera-and-lights file {} (give one with --camera-lights): {}",
+        beside.display(),
+        config.description
+    );
+    Ok(config)
 }
 
 /// `radiosity render`.
@@ -110,9 +154,17 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("creating the output directory {}", dir.display()))?;
     }
+    let early = camera_lights_before_bake(
+        args.camera_lights.as_deref(),
+        &args.input,
+        args.scene.as_deref(),
+    )?;
     let (baked, scene, scene_path) =
         load_bake(&args.input, args.patches, &args.device, args.scene.clone())?;
-    let config = camera_lights(args.camera_lights.clone(), &scene_path, Some(&scene))?;
+    let config = match early {
+        Some(c) => c,
+        None => camera_lights(args.camera_lights.clone(), &scene_path, Some(&scene))?,
+    };
     let options = RuntimeOptions {
         samples: args.samples,
         ..RuntimeOptions::default()
@@ -316,13 +368,21 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
     if args.screenshot.is_some() && args.frames.is_none() {
         bail!("--screenshot needs --frames N (P or F12 saves screenshots interactively)");
     }
+    let early = camera_lights_before_bake(
+        args.camera_lights.as_deref(),
+        &args.input,
+        args.scene.as_deref(),
+    )?;
     let (baked, scene, scene_path) =
         load_bake(&args.input, args.patches, &args.device, args.scene.clone())?;
     let config_path = args
         .camera_lights
         .clone()
         .unwrap_or_else(|| scene_path.with_extension("json"));
-    let config = camera_lights(args.camera_lights.clone(), &scene_path, Some(&scene))?;
+    let config = match early {
+        Some(c) => c,
+        None => camera_lights(args.camera_lights.clone(), &scene_path, Some(&scene))?,
+    };
     let title = format!(
         "radiosity: {}",
         scene_path

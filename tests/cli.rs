@@ -434,6 +434,26 @@ fn render_bakes_or_reuses_and_writes_png_and_pfm() {
     let o = run(&["--camera-lights", missing.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("missing.json"), "{}", stderr(&o));
+    // A mistake in the scene's own camera-and-lights file stops the command
+    // before a bake (which would take minutes on a large scene): with an
+    // empty cache, nothing is baked and the message names the field.
+    let text = std::fs::read_to_string(src.with_file_name("cornell_box.json")).unwrap();
+    let bad = text.replace("\"cone_angle_deg\": 60.0", "\"cone_angle_deg\": 200.0");
+    assert_ne!(bad, text, "the bundled file's cone angle moved");
+    std::fs::write(dir.join("cornell_box.json"), bad).unwrap();
+    let empty_cache = dir.join("empty-cache");
+    let o = Command::new(env!("CARGO_BIN_EXE_radiosity"))
+        .args(["render", obj.to_str().unwrap(), "-o", png.to_str().unwrap()])
+        .env("RADIOSITY_CACHE_DIR", &empty_cache)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("cone_angle_deg") && !stderr(&o).contains("[bake]"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!empty_cache.exists(), "a bake was started");
 }
 
 /// `info` on a file named `.rad` that is not a bake file says so (it does
