@@ -327,6 +327,36 @@ fn an_outward_wound_box_is_refused_and_bakes_two_sided() {
     assert!(out.file.options_json.contains("\"two_sided\":true"));
 }
 
+/// A 10 m room on a 10 km ground plane (a building on its site, as
+/// architectural scenes come): at a few hundred patches a voxel is some
+/// hundreds of metres wide, the room falls inside one voxel and the flat
+/// ground sees nothing. The bake is refused with the voxel size and the
+/// cause, not a bare "nothing to bake".
+#[test]
+fn a_room_on_a_huge_ground_is_refused_naming_the_voxel() {
+    let mut quads = room([-5.0, 0.0, -5.0], [5.0, 4.0, 5.0], [0.7; 3]);
+    quads.push(quad(
+        [0.0, -0.01, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 0.0],
+        5000.0,
+        5000.0,
+        [0.3; 3],
+    ));
+    let obj = write_quads("acc-site", &quads);
+    common::gpu();
+    let err = bake::run(&config(&obj, Resolution::Patches(400)), &mut |_| {})
+        .err()
+        .expect("a room inside one voxel must not bake");
+    let root = err.root_cause().to_string();
+    assert!(
+        root.contains("no patch sees another surface")
+            && root.contains("voxels")
+            && root.contains("ground"),
+        "{root}"
+    );
+}
+
 /// Some faces wound the wrong way (src/bake/facing.rs, "Some faces
 /// reversed"): a room with two of its six walls flipped bakes, but those
 /// walls lose their patches, so the bake warns and names their materials;

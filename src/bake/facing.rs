@@ -117,10 +117,17 @@ pub fn check(
     if ff.n == 0 {
         return Err(BakeError::Facing {
             detail: format!(
-                "no patch sees another surface ({} patches, all removed): there is nothing to \
-                 bake, as no light can bounce between surfaces. A closed or at least partly \
-                 enclosing scene is needed{}",
+                "no patch sees another surface ({} patches of voxels {:.4e} wide, {} × {} × {} \
+                 across the scene, all removed): there is nothing to bake, as no light can \
+                 bounce between surfaces. A closed or at least partly enclosing scene is \
+                 needed, with its parts larger than a voxel (surfaces closer than a voxel merge \
+                 into one patch, so a large ground plane around a small building leaves the \
+                 building inside a voxel: crop the ground or bake more patches){}",
                 vox.patches.len(),
+                vox.grid.size,
+                vox.grid.dims[0],
+                vox.grid.dims[1],
+                vox.grid.dims[2],
                 if two_sided {
                     ""
                 } else {
