@@ -36,7 +36,10 @@
 //! log table, exactly as [`Encoded::decode`]. A block then costs three
 //! table reads, and per channel one permute of its 16 two-bit indices and
 //! one fused multiply-add. BC4: the 8 levels of a block are looked up in a
-//! table indexed by the interpolation's numerator. BC6H, f16 and f32 are
+//! table indexed by the interpolation's numerator, and its 16 values are
+//! picked from them once (on AVX-512 by one permute), then multiplied into
+//! every channel of `B0` they serve (three for a grey matrix), in code
+//! compiled for the CPU's widest vectors. BC6H, f16 and f32 are
 //! decoded a tile at a time into a buffer by the codec's own decoder and
 //! multiplied (the same skipping by tiles and column groups, arithmetic
 //! only inside a tile).
@@ -606,7 +609,7 @@ impl CompressedGather {
                         if self.format == DenseFormat::Bc1 {
                             self.bc1_column(col, &b, acc);
                         } else {
-                            self.bc4_column(col, &b, out_ch, acc);
+                            self.bc4_column_dispatch(col, &b, out_ch, acc);
                         }
                     }
                 }
@@ -782,8 +785,84 @@ impl CompressedGather {
         }
     }
 
+    /// [`Self::bc4_column`] compiled for the widest vectors this CPU has
+    /// (with `simd`): the same Rust, so the same operations in the same
+    /// order and the same bits (Rust does not fuse a multiply and an add
+    /// on its own); its per-channel loops then take one or two vector
+    /// instructions where the baseline's SSE2 takes four. A grey matrix
+    /// gathering coloured light on the Cornell box at 1k patches: 0.41 →
+    /// 0.29 ms.
+    fn bc4_column_dispatch(
+        &self,
+        col: &[u8],
+        b: &[[f32; 4]; 3],
+        out_ch: usize,
+        acc: &mut [[[f32; 16]; 3]],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.simd {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: checked just above that the CPU has AVX-512F.
+                unsafe { self.bc4_column_avx512(col, b, out_ch, acc) };
+                return;
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: checked just above that the CPU has AVX2.
+                unsafe { self.bc4_column_avx2(col, b, out_ch, acc) };
+                return;
+            }
+        }
+        self.bc4_column(col, b, out_ch, acc);
+    }
+
+    /// [`Self::bc4_column`] with AVX-512F.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn bc4_column_avx512(
+        &self,
+        col: &[u8],
+        b: &[[f32; 4]; 3],
+        out_ch: usize,
+        acc: &mut [[[f32; 16]; 3]],
+    ) {
+        // SAFETY: this function runs only where the CPU has AVX-512F.
+        self.bc4_column_with(col, b, out_ch, acc, |pal, bits| unsafe {
+            x86::bc4_values_avx512(pal, bits)
+        });
+    }
+
+    /// [`Self::bc4_column`] with AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn bc4_column_avx2(
+        &self,
+        col: &[u8],
+        b: &[[f32; 4]; 3],
+        out_ch: usize,
+        acc: &mut [[[f32; 16]; 3]],
+    ) {
+        self.bc4_column(col, b, out_ch, acc);
+    }
+
     /// One BC4 block column (`bh` blocks of `channels` channels) times `b`.
+    #[inline(always)]
     fn bc4_column(&self, col: &[u8], b: &[[f32; 4]; 3], out_ch: usize, acc: &mut [[[f32; 16]; 3]]) {
+        self.bc4_column_with(col, b, out_ch, acc, |pal, bits| {
+            std::array::from_fn(|lane| pal[((bits >> (3 * lane)) & 7) as usize])
+        });
+    }
+
+    /// [`Self::bc4_column`] with a block's 16 values picked from its
+    /// palette by `values` (lane `l`: entry `(bits >> 3l) & 7`).
+    #[inline(always)]
+    fn bc4_column_with(
+        &self,
+        col: &[u8],
+        b: &[[f32; 4]; 3],
+        out_ch: usize,
+        acc: &mut [[[f32; 16]; 3]],
+        values: impl Fn(&[f32; 8], u64) -> [f32; 16],
+    ) {
         let chs = self.channels;
         for (k, a) in acc.iter_mut().enumerate() {
             for c in 0..chs {
@@ -808,6 +887,12 @@ impl CompressedGather {
                     pal[7] = t[5 * 255];
                 }
                 let bits = u64::from_le_bytes(blk.try_into().unwrap()) >> 16;
+                // The block's 16 values once, then per output channel a
+                // loop the compiler vectorises (a grey matrix serves three
+                // channels of B0 from one decode: picking the palette
+                // entry per lane and channel had been most of its time,
+                // 3.7× the 3-channel BC1 gather on the Cornell box at 1k).
+                let vals = values(&pal, bits);
                 // One stored channel serves every output channel.
                 let outs: &[usize] = if chs == 1 {
                     &[0, 1, 2][..out_ch]
@@ -815,9 +900,9 @@ impl CompressedGather {
                     &[0, 1, 2][c..c + 1]
                 };
                 for &oc in outs {
-                    for (lane, v) in a[oc].iter_mut().enumerate() {
-                        let q = (bits >> (3 * lane)) & 7;
-                        *v += pal[q as usize] * b[oc][lane & 3];
+                    let bo = &b[oc];
+                    for (lane, (v, x)) in a[oc].iter_mut().zip(&vals).enumerate() {
+                        *v += x * bo[lane & 3];
                     }
                 }
             }
