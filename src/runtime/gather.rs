@@ -38,8 +38,11 @@
 //! one fused multiply-add. BC4: the 8 levels of a block are looked up in a
 //! table indexed by the interpolation's numerator, and its 16 values are
 //! picked from them once (on AVX-512 by one permute), then multiplied into
-//! every channel of `B0` they serve (three for a grey matrix), in code
-//! compiled for the CPU's widest vectors. BC6H, f16 and f32 are
+//! every channel of `B0` they serve, in code compiled for the CPU's widest
+//! vectors. A grey matrix (one BC4 channel) gathering three channels runs
+//! on AVX-512 as BC1 does, its accumulators in registers for a row of
+//! tiles and a block's palette one load from a table of every endpoint
+//! pair. BC6H, f16 and f32 are
 //! decoded a tile at a time into a buffer by the codec's own decoder and
 //! multiplied (the same skipping by tiles and column groups, arithmetic
 //! only inside a tile).
@@ -187,6 +190,10 @@ pub struct CompressedGather {
     /// interpolations, per channel.
     bc4_7: Vec<[f32; 1786]>,
     bc4_5: Vec<[f32; 1276]>,
+    /// A grey (one-channel) BC4 matrix on AVX-512: the 8 levels of every
+    /// endpoint pair, `[r0 << 8 | r1]` (2 MiB, so a block's palette is one
+    /// load; empty otherwise).
+    bc4_pairs: Vec<[f32; 8]>,
     book: Codebook,
     sparse: SparseRt,
     /// [`Encoded::col_scale`] (empty: none).
@@ -322,6 +329,14 @@ impl CompressedGather {
                 bc4_5.push(t5);
             }
         }
+        let bc4_pairs =
+            if e.format == DenseFormat::Bc4 && e.channels == 1 && simd && simd_kind() == "avx512" {
+                (0..1usize << 16)
+                    .map(|k| bc4_palette(&bc4_7[0], &bc4_5[0], (k >> 8) as u8, k as u8))
+                    .collect()
+            } else {
+                Vec::new()
+            };
         let sp = &e.sparse;
         let rgb9e5 = sp.precision == SparseValues::Rgb9e5 && !sp.is_empty();
         let mut exp_factor = [[0.0f32; 4]; 32];
@@ -419,6 +434,7 @@ impl CompressedGather {
             bc1,
             bc4_7,
             bc4_5,
+            bc4_pairs,
             book,
             sparse,
             col_scale: e.col_scale.clone(),
@@ -471,7 +487,7 @@ impl CompressedGather {
         let (mut b0p, mut b0x) = INPUTS.take();
         b0p.clear();
         b0x.clear();
-        if self.simd && self.format == DenseFormat::Bc1 {
+        if self.simd && (self.format == DenseFormat::Bc1 || !self.bc4_pairs.is_empty()) {
             fill_b0_groups(b0, active, tile, &mut b0p);
         }
         if self.sparse.rgb9e5 && out_ch == 3 {
@@ -556,9 +572,13 @@ impl CompressedGather {
                 // which the reader accepts, take the portable path there):
                 // the active block columns (byte offset, first column) are
                 // listed first.
-                let fast = self.simd
-                    && self.format == DenseFormat::Bc1
-                    && (simd_kind() == "avx2" || bh <= 8);
+                // A grey BC4 matrix gathering three channels runs the same
+                // way on AVX-512 ([`x86::bc4_grey_row_avx512`]).
+                let grey_fast = !self.bc4_pairs.is_empty() && out_ch == 3 && bh <= 8;
+                let fast = grey_fast
+                    || (self.simd
+                        && self.format == DenseFormat::Bc1
+                        && (simd_kind() == "avx2" || bh <= 8));
                 fast_cols.clear();
                 if fast {
                     // Only the list: counted by its length afterwards.
@@ -614,7 +634,24 @@ impl CompressedGather {
                     }
                 }
                 #[cfg(target_arch = "x86_64")]
-                if fast && simd_kind() == "avx2" {
+                if grey_fast {
+                    // SAFETY: the pair table is built only where the CPU
+                    // reports AVX-512F.
+                    unsafe {
+                        let (d, cols, p) = (&self.dense[..], &fast_cols[..], &self.bc4_pairs[..]);
+                        let acc = &mut acc[..];
+                        match bh {
+                            8 => x86::bc4_grey_row_avx512::<8>(d, cols, b0p, p, acc),
+                            7 => x86::bc4_grey_row_avx512::<7>(d, cols, b0p, p, acc),
+                            6 => x86::bc4_grey_row_avx512::<6>(d, cols, b0p, p, acc),
+                            5 => x86::bc4_grey_row_avx512::<5>(d, cols, b0p, p, acc),
+                            4 => x86::bc4_grey_row_avx512::<4>(d, cols, b0p, p, acc),
+                            3 => x86::bc4_grey_row_avx512::<3>(d, cols, b0p, p, acc),
+                            2 => x86::bc4_grey_row_avx512::<2>(d, cols, b0p, p, acc),
+                            _ => x86::bc4_grey_row_avx512::<1>(d, cols, b0p, p, acc),
+                        }
+                    }
+                } else if fast && simd_kind() == "avx2" {
                     // SAFETY: `simd_kind` checked AVX2 and FMA.
                     unsafe {
                         let tables = self.bc1.as_ref().expect("BC1 tables");
@@ -867,25 +904,7 @@ impl CompressedGather {
         for (k, a) in acc.iter_mut().enumerate() {
             for c in 0..chs {
                 let blk = &col[8 * (k * chs + c)..8 * (k * chs + c) + 8];
-                let (r0, r1) = (blk[0] as usize, blk[1] as usize);
-                let mut pal = [0.0f32; 8];
-                if r0 > r1 {
-                    let t = &self.bc4_7[c];
-                    pal[0] = t[7 * r0];
-                    pal[1] = t[7 * r1];
-                    for (i, p) in pal.iter_mut().enumerate().skip(2) {
-                        *p = t[(8 - i) * r0 + (i - 1) * r1];
-                    }
-                } else {
-                    let t = &self.bc4_5[c];
-                    pal[0] = t[5 * r0];
-                    pal[1] = t[5 * r1];
-                    for (i, p) in pal.iter_mut().enumerate().take(6).skip(2) {
-                        *p = t[(6 - i) * r0 + (i - 1) * r1];
-                    }
-                    pal[6] = 0.0;
-                    pal[7] = t[5 * 255];
-                }
+                let pal = bc4_palette(&self.bc4_7[c], &self.bc4_5[c], blk[0], blk[1]);
                 let bits = u64::from_le_bytes(blk.try_into().unwrap()) >> 16;
                 // The block's 16 values once, then per output channel a
                 // loop the compiler vectorises (a grey matrix serves three
@@ -908,6 +927,31 @@ impl CompressedGather {
             }
         }
     }
+}
+
+/// The 8 decoded levels of a BC4 block with endpoints `r0`, `r1` (8-level
+/// interpolation when `r0 > r1`, else 6 levels, 0 and the top), from the
+/// channel's tables by the interpolation's numerator.
+#[inline(always)]
+fn bc4_palette(t7: &[f32; 1786], t5: &[f32; 1276], r0: u8, r1: u8) -> [f32; 8] {
+    let (r0, r1) = (r0 as usize, r1 as usize);
+    let mut pal = [0.0f32; 8];
+    if r0 > r1 {
+        pal[0] = t7[7 * r0];
+        pal[1] = t7[7 * r1];
+        for (i, p) in pal.iter_mut().enumerate().skip(2) {
+            *p = t7[(8 - i) * r0 + (i - 1) * r1];
+        }
+    } else {
+        pal[0] = t5[5 * r0];
+        pal[1] = t5[5 * r1];
+        for (i, p) in pal.iter_mut().enumerate().take(6).skip(2) {
+            *p = t5[(6 - i) * r0 + (i - 1) * r1];
+        }
+        pal[6] = 0.0;
+        pal[7] = t5[5 * 255];
+    }
+    pal
 }
 
 /// What every row of tiles of one product reads besides the matrix.

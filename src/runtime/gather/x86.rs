@@ -395,3 +395,70 @@ pub(super) unsafe fn bc4_values_avx512(pal: &[f32; 8], bits: u64) -> [f32; 16] {
     _mm512_storeu_ps(out.as_mut_ptr(), _mm512_permutexvar_ps(idx, p));
     out
 }
+
+/// A grey (one-channel) BC4 row of tiles of `BH` block rows gathering the
+/// three channels of `B0` on AVX-512, laid out as [`bc1_row_avx512`]'s
+/// (`cols`: active block columns, byte offset and first column; `b0p`
+/// from [`super::fill_b0_groups`]) with the `3 BH` accumulators in
+/// registers for the whole row. Per block: its palette, one load from the
+/// table of every endpoint pair (`pairs`, [`super::bc4_palette`]), its 16
+/// values picked as [`bc4_values_avx512`] picks them, and per channel one
+/// multiply and one add (not fused: the portable path's `acc += v · b`,
+/// so the same bits). The palettes of the blocks `PAIR_AHEAD` columns on
+/// are prefetched (the table is 2 MiB, beyond L1 and L2 for random pairs).
+#[target_feature(enable = "avx512f")]
+pub(super) unsafe fn bc4_grey_row_avx512<const BH: usize>(
+    dense: &[u8],
+    cols: &[(u32, u32)],
+    b0p: &[[[f32; 4]; 3]],
+    pairs: &[[f32; 8]],
+    acc: &mut [[[f32; 16]; 3]],
+) {
+    use std::arch::x86_64::*;
+    const PAIR_AHEAD: usize = 4;
+    let pair = |w: u64| ((w & 0xff) << 8 | ((w >> 8) & 0xff)) as usize;
+    let mut a = [[_mm512_setzero_ps(); 3]; BH];
+    for (k, row) in a.iter_mut().enumerate() {
+        for (c, v) in row.iter_mut().enumerate() {
+            *v = _mm512_loadu_ps(acc[k][c].as_ptr());
+        }
+    }
+    let lo = _mm512_setr_epi64(0, 3, 6, 9, 12, 15, 18, 21);
+    let hi = _mm512_setr_epi64(24, 27, 30, 33, 36, 39, 42, 45);
+    for (ci, &(off, c0)) in cols.iter().enumerate() {
+        if let Some(&(next, _)) = cols.get(ci + PAIR_AHEAD) {
+            let col = dense.as_ptr().add(next as usize);
+            for k in 0..BH {
+                let w = (col.add(8 * k) as *const u64).read_unaligned();
+                _mm_prefetch::<_MM_HINT_T0>(pairs.as_ptr().add(pair(w)) as *const i8);
+            }
+        }
+        let bp = b0p.get_unchecked(c0 as usize / 4).as_ptr() as *const f32;
+        let b = [
+            _mm512_broadcast_f32x4(_mm_loadu_ps(bp)),
+            _mm512_broadcast_f32x4(_mm_loadu_ps(bp.add(4))),
+            _mm512_broadcast_f32x4(_mm_loadu_ps(bp.add(8))),
+        ];
+        let col = dense.as_ptr().add(off as usize);
+        for (k, row) in a.iter_mut().enumerate() {
+            let w = (col.add(8 * k) as *const u64).read_unaligned();
+            let p = _mm512_castps256_ps512(_mm256_loadu_ps(pairs.get_unchecked(pair(w)).as_ptr()));
+            // Entry j at lanes j and j + 8 (see bc4_values_avx512).
+            let p = _mm512_shuffle_f32x4::<0b01_00_01_00>(p, p);
+            let q = _mm512_set1_epi64((w >> 16) as i64);
+            let idx = _mm512_inserti64x4::<1>(
+                _mm512_castsi256_si512(_mm512_cvtepi64_epi32(_mm512_srlv_epi64(q, lo))),
+                _mm512_cvtepi64_epi32(_mm512_srlv_epi64(q, hi)),
+            );
+            let v = _mm512_permutexvar_ps(idx, p);
+            row[0] = _mm512_add_ps(row[0], _mm512_mul_ps(v, b[0]));
+            row[1] = _mm512_add_ps(row[1], _mm512_mul_ps(v, b[1]));
+            row[2] = _mm512_add_ps(row[2], _mm512_mul_ps(v, b[2]));
+        }
+    }
+    for (k, row) in a.iter().enumerate() {
+        for (c, v) in row.iter().enumerate() {
+            _mm512_storeu_ps(acc[k][c].as_mut_ptr(), *v);
+        }
+    }
+}
