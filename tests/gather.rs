@@ -141,10 +141,30 @@ fn gather_matches_the_reference_decode_for_every_codec() {
 
 #[test]
 fn skipping_columns_changes_no_bit_and_reads_less() {
-    let (t, b0, n) = problem(8, 2, false);
-    let b = refs(&b0);
+    let (t, mut b0, n) = problem(8, 2, false);
+    // Half the patches' light (a product big enough for the thread pool),
+    // then two patches' (small enough to run on the calling thread, while
+    // every column still goes to the pool): the same bits either way.
+    for lit in [usize::MAX, 2] {
+        let mut seen = 0;
+        for j in 0..n {
+            if b0[0][j] != 0.0 {
+                seen += 1;
+                if seen > lit {
+                    for c in &mut b0 {
+                        c[j] = 0.0;
+                    }
+                }
+            }
+        }
+        skipping_changes_no_bit(&t, &b0, n);
+    }
+}
+
+fn skipping_changes_no_bit(t: &[Vec<f32>; 3], b0: &[Vec<f32>; 3], n: usize) {
+    let b = refs(b0);
     for (name, kind) in kinds() {
-        let e: Encoded = encode::encode(kind, refs(&t), n).unwrap();
+        let e: Encoded = encode::encode(kind, refs(t), n).unwrap();
         for simd in [false, true] {
             let g = CompressedGather::new(&e, simd);
             let all = ActiveColumns::of(b, e.index.tile, true);
