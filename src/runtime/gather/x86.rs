@@ -9,9 +9,10 @@
 use super::{bc1_keys, Bc1Table};
 
 /// [`super::sparse_rgb9e5`] with AVX2 (the runs of a row of tiles in one
-/// call): the three mantissas extracted by one variable shift and converted together; the same operations per lane in
-/// the same order (mantissa times factor, times `B0`, added to the row),
-/// so the same bits. 24 instructions an entry, two bounds checks
+/// call): the three mantissas extracted by one variable shift and
+/// converted together; the same operations per lane in the same order
+/// (mantissa times factor, times `B0`, added to the row), so the same
+/// bits. 24 instructions an entry, two bounds checks
 /// included, where the portable loop, which the compiler vectorises only
 /// partly, takes 41 (counted in the disassembly).
 #[target_feature(enable = "avx2")]
@@ -379,7 +380,18 @@ pub(super) unsafe fn bc1_row_avx2(
 #[inline]
 pub(super) unsafe fn bc4_values_avx512(pal: &[f32; 8], bits: u64) -> [f32; 16] {
     use std::arch::x86_64::*;
-    let p = _mm512_castps256_ps512(_mm256_loadu_ps(pal.as_ptr()));
+    let mut out = [0.0f32; 16];
+    _mm512_storeu_ps(out.as_mut_ptr(), bc4_select_avx512(pal.as_ptr(), bits));
+    out
+}
+
+/// The selection of [`bc4_values_avx512`] in a register: the 8 levels at
+/// `pal`, the 48 index bits in `bits`.
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn bc4_select_avx512(pal: *const f32, bits: u64) -> std::arch::x86_64::__m512 {
+    use std::arch::x86_64::*;
+    let p = _mm512_castps256_ps512(_mm256_loadu_ps(pal));
     // 128-bit chunks 0, 1, 0, 1: entry j at lanes j and j + 8, so the
     // permute's fourth index bit (the next entry's lowest) picks an equal
     // copy and needs no mask.
@@ -391,9 +403,7 @@ pub(super) unsafe fn bc4_values_avx512(pal: &[f32; 8], bits: u64) -> [f32; 16] {
         _mm512_castsi256_si512(_mm512_cvtepi64_epi32(lo)),
         _mm512_cvtepi64_epi32(hi),
     );
-    let mut out = [0.0f32; 16];
-    _mm512_storeu_ps(out.as_mut_ptr(), _mm512_permutexvar_ps(idx, p));
-    out
+    _mm512_permutexvar_ps(idx, p)
 }
 
 /// A grey (one-channel) BC4 row of tiles of `BH` block rows gathering the
@@ -423,8 +433,6 @@ pub(super) unsafe fn bc4_grey_row_avx512<const BH: usize>(
             *v = _mm512_loadu_ps(acc[k][c].as_ptr());
         }
     }
-    let lo = _mm512_setr_epi64(0, 3, 6, 9, 12, 15, 18, 21);
-    let hi = _mm512_setr_epi64(24, 27, 30, 33, 36, 39, 42, 45);
     for (ci, &(off, c0)) in cols.iter().enumerate() {
         if let Some(&(next, _)) = cols.get(ci + PAIR_AHEAD) {
             let col = dense.as_ptr().add(next as usize);
@@ -442,15 +450,7 @@ pub(super) unsafe fn bc4_grey_row_avx512<const BH: usize>(
         let col = dense.as_ptr().add(off as usize);
         for (k, row) in a.iter_mut().enumerate() {
             let w = (col.add(8 * k) as *const u64).read_unaligned();
-            let p = _mm512_castps256_ps512(_mm256_loadu_ps(pairs.get_unchecked(pair(w)).as_ptr()));
-            // Entry j at lanes j and j + 8 (see bc4_values_avx512).
-            let p = _mm512_shuffle_f32x4::<0b01_00_01_00>(p, p);
-            let q = _mm512_set1_epi64((w >> 16) as i64);
-            let idx = _mm512_inserti64x4::<1>(
-                _mm512_castsi256_si512(_mm512_cvtepi64_epi32(_mm512_srlv_epi64(q, lo))),
-                _mm512_cvtepi64_epi32(_mm512_srlv_epi64(q, hi)),
-            );
-            let v = _mm512_permutexvar_ps(idx, p);
+            let v = bc4_select_avx512(pairs.get_unchecked(pair(w)).as_ptr(), w >> 16);
             row[0] = _mm512_add_ps(row[0], _mm512_mul_ps(v, b[0]));
             row[1] = _mm512_add_ps(row[1], _mm512_mul_ps(v, b[1]));
             row[2] = _mm512_add_ps(row[2], _mm512_mul_ps(v, b[2]));
