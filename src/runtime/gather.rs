@@ -586,9 +586,9 @@ impl CompressedGather {
                 // which the reader accepts, take the portable path there):
                 // the active block columns (byte offset, first column) are
                 // listed first.
-                // A grey BC4 matrix gathering three channels runs the same
-                // way on AVX-512 ([`x86::bc4_grey_row_avx512`]).
-                let grey_fast = !self.bc4_pairs.is_empty() && out_ch == 3 && bh <= 8;
+                // A grey BC4 matrix runs the same way on AVX-512
+                // ([`x86::bc4_grey_row_avx512`]).
+                let grey_fast = !self.bc4_pairs.is_empty() && bh <= 8;
                 let fast = grey_fast
                     || (self.simd
                         && self.format == DenseFormat::Bc1
@@ -649,20 +649,14 @@ impl CompressedGather {
                 }
                 #[cfg(target_arch = "x86_64")]
                 if grey_fast {
+                    let (d, cols, p) = (&self.dense[..], &fast_cols[..], &self.bc4_pairs[..]);
                     // SAFETY: the pair table is built only where the CPU
                     // reports AVX-512F.
                     unsafe {
-                        let (d, cols, p) = (&self.dense[..], &fast_cols[..], &self.bc4_pairs[..]);
-                        let acc = &mut acc[..];
-                        match bh {
-                            8 => x86::bc4_grey_row_avx512::<8>(d, cols, b0p, p, acc),
-                            7 => x86::bc4_grey_row_avx512::<7>(d, cols, b0p, p, acc),
-                            6 => x86::bc4_grey_row_avx512::<6>(d, cols, b0p, p, acc),
-                            5 => x86::bc4_grey_row_avx512::<5>(d, cols, b0p, p, acc),
-                            4 => x86::bc4_grey_row_avx512::<4>(d, cols, b0p, p, acc),
-                            3 => x86::bc4_grey_row_avx512::<3>(d, cols, b0p, p, acc),
-                            2 => x86::bc4_grey_row_avx512::<2>(d, cols, b0p, p, acc),
-                            _ => x86::bc4_grey_row_avx512::<1>(d, cols, b0p, p, acc),
+                        if out_ch == 3 {
+                            bc4_grey_row::<3>(bh, d, cols, b0p, p, acc);
+                        } else {
+                            bc4_grey_row::<1>(bh, d, cols, b0p, p, acc);
                         }
                     }
                 } else if fast && simd_kind() == "avx2" {
@@ -1031,6 +1025,32 @@ fn compact(out: &mut Vec<u32>, tiles: &[u32], row_of: &[u32]) -> usize {
 /// positions on one thread, 0.056 ms on two), the cost of handing the
 /// rows to a second thread and joining.
 const SEQUENTIAL_POSITIONS: u64 = 1 << 16;
+
+/// [`x86::bc4_grey_row_avx512`] for a row of tiles of `bh` (1 to 8) block
+/// rows and `CH` channels of `B0`.
+///
+/// # Safety
+/// The CPU must have AVX-512F.
+#[cfg(target_arch = "x86_64")]
+unsafe fn bc4_grey_row<const CH: usize>(
+    bh: usize,
+    d: &[u8],
+    cols: &[(u32, u32)],
+    b0p: &[[[f32; 4]; 3]],
+    p: &[[f32; 8]],
+    acc: &mut [[[f32; 16]; 3]],
+) {
+    match bh {
+        8 => x86::bc4_grey_row_avx512::<8, CH>(d, cols, b0p, p, acc),
+        7 => x86::bc4_grey_row_avx512::<7, CH>(d, cols, b0p, p, acc),
+        6 => x86::bc4_grey_row_avx512::<6, CH>(d, cols, b0p, p, acc),
+        5 => x86::bc4_grey_row_avx512::<5, CH>(d, cols, b0p, p, acc),
+        4 => x86::bc4_grey_row_avx512::<4, CH>(d, cols, b0p, p, acc),
+        3 => x86::bc4_grey_row_avx512::<3, CH>(d, cols, b0p, p, acc),
+        2 => x86::bc4_grey_row_avx512::<2, CH>(d, cols, b0p, p, acc),
+        _ => x86::bc4_grey_row_avx512::<1, CH>(d, cols, b0p, p, acc),
+    }
+}
 
 /// No stored tile or sparse block at this place ([`CompressedGather`]'s
 /// tables).

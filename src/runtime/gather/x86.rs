@@ -406,18 +406,18 @@ unsafe fn bc4_select_avx512(pal: *const f32, bits: u64) -> std::arch::x86_64::__
     _mm512_permutexvar_ps(idx, p)
 }
 
-/// A grey (one-channel) BC4 row of tiles of `BH` block rows gathering the
-/// three channels of `B0` on AVX-512, laid out as [`bc1_row_avx512`]'s
-/// (`cols`: active block columns, byte offset and first column; `b0p`
-/// from [`super::fill_b0_groups`]) with the `3 BH` accumulators in
-/// registers for the whole row. Per block: its palette, one load from the
+/// A grey (one-channel) BC4 row of tiles of `BH` block rows gathering `CH`
+/// channels of `B0` (3, or 1 when `B0` is grey too) on AVX-512, laid out
+/// as [`bc1_row_avx512`]'s (`cols`: active block columns, byte offset and
+/// first column; `b0p` from [`super::fill_b0_groups`]) with the `CH BH`
+/// accumulators in registers for the whole row. Per block: its palette, one load from the
 /// table of every endpoint pair (`pairs`, [`super::bc4_palette`]), its 16
 /// values picked as [`bc4_values_avx512`] picks them, and per channel one
 /// multiply and one add (not fused: the portable path's `acc += v · b`,
 /// so the same bits). The palettes of the blocks `PAIR_AHEAD` columns on
 /// are prefetched (the table is 2 MiB, beyond L1 and L2 for random pairs).
 #[target_feature(enable = "avx512f")]
-pub(super) unsafe fn bc4_grey_row_avx512<const BH: usize>(
+pub(super) unsafe fn bc4_grey_row_avx512<const BH: usize, const CH: usize>(
     dense: &[u8],
     cols: &[(u32, u32)],
     b0p: &[[[f32; 4]; 3]],
@@ -427,7 +427,7 @@ pub(super) unsafe fn bc4_grey_row_avx512<const BH: usize>(
     use std::arch::x86_64::*;
     const PAIR_AHEAD: usize = 4;
     let pair = |w: u64| ((w & 0xff) << 8 | ((w >> 8) & 0xff)) as usize;
-    let mut a = [[_mm512_setzero_ps(); 3]; BH];
+    let mut a = [[_mm512_setzero_ps(); CH]; BH];
     for (k, row) in a.iter_mut().enumerate() {
         for (c, v) in row.iter_mut().enumerate() {
             *v = _mm512_loadu_ps(acc[k][c].as_ptr());
@@ -442,18 +442,17 @@ pub(super) unsafe fn bc4_grey_row_avx512<const BH: usize>(
             }
         }
         let bp = b0p.get_unchecked(c0 as usize / 4).as_ptr() as *const f32;
-        let b = [
-            _mm512_broadcast_f32x4(_mm_loadu_ps(bp)),
-            _mm512_broadcast_f32x4(_mm_loadu_ps(bp.add(4))),
-            _mm512_broadcast_f32x4(_mm_loadu_ps(bp.add(8))),
-        ];
+        let mut b = [_mm512_setzero_ps(); CH];
+        for (c, bc) in b.iter_mut().enumerate() {
+            *bc = _mm512_broadcast_f32x4(_mm_loadu_ps(bp.add(4 * c)));
+        }
         let col = dense.as_ptr().add(off as usize);
         for (k, row) in a.iter_mut().enumerate() {
             let w = (col.add(8 * k) as *const u64).read_unaligned();
             let v = bc4_select_avx512(pairs.get_unchecked(pair(w)).as_ptr(), w >> 16);
-            row[0] = _mm512_add_ps(row[0], _mm512_mul_ps(v, b[0]));
-            row[1] = _mm512_add_ps(row[1], _mm512_mul_ps(v, b[1]));
-            row[2] = _mm512_add_ps(row[2], _mm512_mul_ps(v, b[2]));
+            for (r, bc) in row.iter_mut().zip(&b) {
+                *r = _mm512_add_ps(*r, _mm512_mul_ps(v, *bc));
+            }
         }
     }
     for (k, row) in a.iter().enumerate() {
