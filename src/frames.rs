@@ -14,16 +14,22 @@ use radiosity::core::scene;
 use radiosity::core::scene_config::SceneConfig;
 use std::path::{Path, PathBuf};
 
+/// Whether `input` is a bake file (named `.rad`, or one by its contents)
+/// rather than a scene to bake.
+fn is_bake_input(input: &Path) -> bool {
+    input
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("rad"))
+        || bakefile::is_bake_file(input)
+}
+
 /// The bake file for `input`: itself, or a bake of the scene (cached).
 pub(crate) fn bake_for(
     input: &Path,
     patches: usize,
     device: &DeviceArgs,
 ) -> anyhow::Result<PathBuf> {
-    let is_rad = input
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("rad"));
-    if is_rad || bakefile::is_bake_file(input) {
+    if is_bake_input(input) {
         return Ok(input.to_path_buf());
     }
     let mut config = BakeConfig::new(input.to_path_buf(), Resolution::Patches(patches));
@@ -57,7 +63,7 @@ pub(crate) fn camera_lights(
 /// (`input` is a scene, or `scene` was given). A mistake in it then stops
 /// the command at once instead of after a bake of minutes. `None`: the
 /// file is chosen after the bake (a .rad names its scene) or made.
-pub(crate) fn camera_lights_before_bake(
+fn camera_lights_before_bake(
     given: Option<&Path>,
     input: &Path,
     scene: Option<&Path>,
@@ -65,13 +71,9 @@ pub(crate) fn camera_lights_before_bake(
     if let Some(path) = given {
         return read_camera_lights(path.to_path_buf()).map(Some);
     }
-    let is_rad = input
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("rad"))
-        || bakefile::is_bake_file(input);
     let scene_path = match scene {
         Some(s) => s,
-        None if !is_rad => input,
+        None if !is_bake_input(input) => input,
         None => return Ok(None),
     };
     let beside = scene_path.with_extension("json");
@@ -154,17 +156,13 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("creating the output directory {}", dir.display()))?;
     }
-    let early = camera_lights_before_bake(
-        args.camera_lights.as_deref(),
+    let (baked, scene, _, config) = load_bake(
         &args.input,
-        args.scene.as_deref(),
+        args.patches,
+        &args.device,
+        args.scene.clone(),
+        args.camera_lights.clone(),
     )?;
-    let (baked, scene, scene_path) =
-        load_bake(&args.input, args.patches, &args.device, args.scene.clone())?;
-    let config = match early {
-        Some(c) => c,
-        None => camera_lights(args.camera_lights.clone(), &scene_path, Some(&scene))?,
-    };
     let options = RuntimeOptions {
         samples: args.samples,
         ..RuntimeOptions::default()
@@ -189,18 +187,28 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
 }
 
 /// The bake of `input` (a .rad, or a scene baked first or taken from the
-/// cache) and its scene, checked to be the one it was baked from.
+/// cache), its scene, checked to be the one it was baked from, the scene's
+/// path and the camera and lights ([`camera_lights`] of `camera_lights`;
+/// read before a bake where its path is known then, so that a mistake in
+/// it does not wait for the bake).
 pub(crate) fn load_bake(
     input: &Path,
     patches: usize,
     device: &DeviceArgs,
     scene_given: Option<PathBuf>,
+    camera_lights_given: Option<PathBuf>,
 ) -> anyhow::Result<(
     radiosity::bakefile::baked::Baked,
     radiosity::core::scene::Scene,
     PathBuf,
+    SceneConfig,
 )> {
     use radiosity::bakefile::baked::{resolve_scene_path, Baked};
+    let early = camera_lights_before_bake(
+        camera_lights_given.as_deref(),
+        input,
+        scene_given.as_deref(),
+    )?;
     let rad = bake_for(input, patches, device)?;
     let baked = Baked::load(&rad)?;
     let scene_path = scene_given.unwrap_or_else(|| resolve_scene_path(&rad, &baked.info.scene));
@@ -223,7 +231,11 @@ pub(crate) fn load_bake(
             diff.join(", ")
         );
     }
-    Ok((baked, scene, scene_path))
+    let config = match early {
+        Some(c) => c,
+        None => camera_lights(camera_lights_given, &scene_path, Some(&scene))?,
+    };
+    Ok((baked, scene, scene_path, config))
 }
 
 /// Lights `rt` with `config` and draws `view` headless: on GL through EGL
@@ -368,21 +380,17 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
     if args.screenshot.is_some() && args.frames.is_none() {
         bail!("--screenshot needs --frames N (P or F12 saves screenshots interactively)");
     }
-    let early = camera_lights_before_bake(
-        args.camera_lights.as_deref(),
+    let (baked, scene, scene_path, config) = load_bake(
         &args.input,
-        args.scene.as_deref(),
+        args.patches,
+        &args.device,
+        args.scene.clone(),
+        args.camera_lights.clone(),
     )?;
-    let (baked, scene, scene_path) =
-        load_bake(&args.input, args.patches, &args.device, args.scene.clone())?;
     let config_path = args
         .camera_lights
         .clone()
         .unwrap_or_else(|| scene_path.with_extension("json"));
-    let config = match early {
-        Some(c) => c,
-        None => camera_lights(args.camera_lights.clone(), &scene_path, Some(&scene))?,
-    };
     let title = format!(
         "radiosity: {}",
         scene_path

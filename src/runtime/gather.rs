@@ -200,6 +200,9 @@ pub struct CompressedGather {
     col_scale: Vec<f32>,
     bytes_index: u64,
     simd: bool,
+    /// [`simd_kind`] where `simd`, else "none": decided once, not per
+    /// block column.
+    vector: &'static str,
 }
 
 fn expand5(v: u32) -> u32 {
@@ -440,6 +443,7 @@ impl CompressedGather {
             col_scale: e.col_scale.clone(),
             bytes_index: e.bytes_index() as u64,
             simd: simd && simd_available(),
+            vector: if simd { simd_kind() } else { "none" },
         }
     }
 
@@ -592,7 +596,7 @@ impl CompressedGather {
                 let fast = grey_fast
                     || (self.simd
                         && self.format == DenseFormat::Bc1
-                        && (simd_kind() == "avx2" || bh <= 8));
+                        && (self.vector == "avx2" || bh <= 8));
                 fast_cols.clear();
                 if fast {
                     // Only the list: counted by its length afterwards.
@@ -659,7 +663,7 @@ impl CompressedGather {
                             bc4_grey_row::<1>(bh, d, cols, b0p, p, acc);
                         }
                     }
-                } else if fast && simd_kind() == "avx2" {
+                } else if fast && self.vector == "avx2" {
                     // SAFETY: `simd_kind` checked AVX2 and FMA.
                     unsafe {
                         let tables = self.bc1.as_ref().expect("BC1 tables");
@@ -836,8 +840,9 @@ impl CompressedGather {
     /// on its own); its per-channel loops then take one or two vector
     /// instructions where the baseline's SSE2 takes four (a grey matrix
     /// gathering coloured light on the Cornell box at 1k patches, before it
-    /// had its own row kernel: 0.41 → 0.34 ms). 3-channel BC4, a grey
-    /// matrix with grey `B0`, and tiles over 32 rows run here.
+    /// had its own row kernel, on AVX-512: 0.41 → 0.34 ms; the AVX2 build
+    /// is not measured, no AVX2-only host being at hand). 3-channel BC4
+    /// and tiles over 32 rows run here.
     fn bc4_column_dispatch(
         &self,
         col: &[u8],
@@ -846,17 +851,12 @@ impl CompressedGather {
         acc: &mut [[[f32; 16]; 3]],
     ) {
         #[cfg(target_arch = "x86_64")]
-        if self.simd {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: checked just above that the CPU has AVX-512F.
-                unsafe { self.bc4_column_avx512(col, b, out_ch, acc) };
-                return;
-            }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: checked just above that the CPU has AVX2.
-                unsafe { self.bc4_column_avx2(col, b, out_ch, acc) };
-                return;
-            }
+        match self.vector {
+            // SAFETY: `vector` names what the CPU reported at `new`.
+            "avx512" => return unsafe { self.bc4_column_avx512(col, b, out_ch, acc) },
+            // SAFETY: as above (AVX2 and FMA).
+            "avx2" => return unsafe { self.bc4_column_avx2(col, b, out_ch, acc) },
+            _ => {}
         }
         self.bc4_column(col, b, out_ch, acc);
     }
