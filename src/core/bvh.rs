@@ -648,7 +648,8 @@ fn median(slice: &mut [u32], centroids: &[[f32; 3]], axis: usize) -> usize {
 /// Entry parameter of the segment `o + t d`, `t ∈ [0, 1]`, into a node's box,
 /// or `None` when it misses. `min`/`max` ignore the NaN of `0 · ∞` (a
 /// segment parallel to and inside a slab), as `fmin`/`fmax` do in the kernel.
-fn slab(n: &Node, o: [f64; 3], inv: [f64; 3]) -> Option<f64> {
+/// `inv` is `1 / d` per axis.
+pub fn slab(n: &Node, o: [f64; 3], inv: [f64; 3]) -> Option<f64> {
     let mut t0 = 0.0f64;
     let mut t1 = 1.0f64;
     for k in 0..3 {

@@ -7,6 +7,7 @@
 //! compression report measures `H = T̃ · B0` over.
 
 use crate::core::bvh::Bvh;
+use crate::core::bvh4::Bvh4;
 use crate::core::light::incident;
 use crate::core::math::{add, dot, f64s, normalize, scale, sub, SplitMix64};
 use crate::core::patch::Patch;
@@ -17,6 +18,9 @@ use rayon::prelude::*;
 /// Direct light on patches, with a BVH over the scene's triangles.
 pub struct DirectLight {
     bvh: Bvh,
+    /// Its four-wide view, which the shadow rays traverse (same answers,
+    /// [`crate::core::bvh4`]).
+    bvh4: Bvh4,
     /// Shadow rays start this far in front of the surface (scene units):
     /// 1e-4 of the scene's extent, far above f32 rounding of the
     /// triangles and far below any feature a patch resolves.
@@ -32,8 +36,10 @@ impl DirectLight {
             .map(|a| (hi[a] - lo[a]) as f64)
             .fold(0.0, f64::max)
             .max(1e-30);
+        let bvh = Bvh::build(&scene.positions, &scene.triangles, [0.0; 3]);
         DirectLight {
-            bvh: Bvh::build(&scene.positions, &scene.triangles, [0.0; 3]),
+            bvh4: Bvh4::build(&bvh),
+            bvh,
             offset: 1e-4 * extent,
             far: 2.0 * extent,
         }
@@ -118,7 +124,7 @@ impl DirectLight {
                 let blocked = match *blocker {
                     Some((leaf, k)) if self.bvh.hits_in_leaf(leaf, k, x, dir) => true,
                     _ => {
-                        let hit = self.bvh.any_hit_leaf(x, dir, |_, _| false);
+                        let hit = self.bvh4.any_hit_leaf(&self.bvh, x, dir);
                         if hit.is_some() {
                             *blocker = hit;
                         }
@@ -142,8 +148,8 @@ impl DirectLight {
 
     /// Whether the segment `from → to` crosses no triangle.
     pub fn visible(&self, from: [f64; 3], to: [f64; 3]) -> bool {
-        self.bvh
-            .any_hit(from, sub(to, from), |_, _| false)
+        self.bvh4
+            .any_hit_leaf(&self.bvh, from, sub(to, from))
             .is_none()
     }
 

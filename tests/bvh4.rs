@@ -1,0 +1,283 @@
+//! The four-wide BVH of the shadow rays against the binary one it is built
+//! from (`src/core/bvh4.rs`): on generated scenes that are not kind
+//! (lattice walls whose box planes rays start on and run along, slivers,
+//! millimetre and kilometre scales far from the origin, a random soup), a
+//! segment is blocked for one exactly when it is for the other, on the AVX
+//! and the portable box test alike; and the four-box test agrees with the
+//! binary slab test, NaN cases included.
+
+use radiosity::core::bvh::{slab, Bvh, Node};
+use radiosity::core::bvh4::{test4_portable, Bvh4, Node4};
+use radiosity::core::math::SplitMix64;
+
+/// A scene: positions and triangles.
+type Soup = (Vec<[f32; 3]>, Vec<[u32; 3]>);
+
+fn push_quad(s: &mut Soup, c: [f64; 3], u: [f64; 3], v: [f64; 3]) {
+    let base = s.0.len() as u32;
+    for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+        s.0.push(std::array::from_fn(|k| (c[k] + a * u[k] + b * v[k]) as f32));
+    }
+    s.1.push([base, base + 1, base + 2]);
+    s.1.push([base, base + 2, base + 3]);
+}
+
+/// Walls on an integer lattice: box planes at integers, so rays starting
+/// at integer coordinates along an axis give `0 × ∞` in the slab test.
+fn lattice(scale: f64, offset: f64) -> Soup {
+    let mut s = (Vec::new(), Vec::new());
+    for i in 0..6 {
+        for j in 0..6 {
+            let (x, z) = (i as f64 * 2.0, j as f64 * 2.0);
+            let w = |p: [f64; 3]| p.map(|v| v * scale + offset);
+            let h = scale;
+            if (i + j) % 2 == 0 {
+                push_quad(&mut s, w([x, 1.0, z]), [h, 0.0, 0.0], [0.0, h, 0.0]);
+            }
+            if (i * 3 + j) % 4 != 1 {
+                push_quad(
+                    &mut s,
+                    w([x + 1.0, 0.0, z + 1.0]),
+                    [h, 0.0, 0.0],
+                    [0.0, 0.0, h],
+                );
+            }
+            if (i + 2 * j) % 3 == 0 {
+                push_quad(&mut s, w([x, 1.0, z + 1.0]), [0.0, 0.0, h], [0.0, h, 0.0]);
+            }
+        }
+    }
+    s
+}
+
+/// Long thin triangles (aspect up to 1e5) crossing each other, as a grid
+/// cuts walls into slivers.
+fn slivers(rng: &mut SplitMix64) -> Soup {
+    let mut s = (Vec::new(), Vec::new());
+    for _ in 0..600 {
+        let a: [f64; 3] = std::array::from_fn(|_| rng.uniform() * 10.0);
+        let dir: [f64; 3] = std::array::from_fn(|_| rng.uniform() - 0.5);
+        let len = 1.0 + 5.0 * rng.uniform();
+        let b: [f64; 3] = std::array::from_fn(|k| a[k] + dir[k] * len);
+        let w = 10f64.powf(-5.0 + 4.0 * rng.uniform());
+        let c: [f64; 3] = std::array::from_fn(|k| 0.5 * (a[k] + b[k]) + w * (rng.uniform() - 0.5));
+        let base = s.0.len() as u32;
+        for p in [a, b, c] {
+            s.0.push(p.map(|v| v as f32));
+        }
+        s.1.push([base, base + 1, base + 2]);
+    }
+    s
+}
+
+/// Random triangles of every size in a cube of side `size` around `at`.
+fn soup(rng: &mut SplitMix64, size: f64, at: f64) -> Soup {
+    let mut s = (Vec::new(), Vec::new());
+    for _ in 0..1500 {
+        let c: [f64; 3] = std::array::from_fn(|_| at + size * rng.uniform());
+        let r = size * 10f64.powf(-3.0 + 2.5 * rng.uniform());
+        let base = s.0.len() as u32;
+        for _ in 0..3 {
+            s.0.push(std::array::from_fn(|k| {
+                (c[k] + r * (rng.uniform() - 0.5)) as f32
+            }));
+        }
+        s.1.push([base, base + 1, base + 2]);
+    }
+    s
+}
+
+/// Segments for `scene`: random ones, ones along the axes from lattice
+/// points (when `lattice` is set), and ones aimed at vertices and edge
+/// midpoints (grazing the widened triangle test).
+fn segments(
+    rng: &mut SplitMix64,
+    scene: &Soup,
+    lattice: Option<(f64, f64)>,
+) -> Vec<([f64; 3], [f64; 3])> {
+    let (lo, hi) = scene
+        .0
+        .iter()
+        .fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), p| {
+            (
+                std::array::from_fn(|k| lo[k].min(p[k] as f64)),
+                std::array::from_fn(|k| hi[k].max(p[k] as f64)),
+            )
+        });
+    let ext: [f64; 3] = std::array::from_fn(|k| (hi[k] - lo[k]).max(1e-9));
+    let inside = |rng: &mut SplitMix64| -> [f64; 3] {
+        std::array::from_fn(|k| lo[k] - 0.1 * ext[k] + 1.2 * ext[k] * rng.uniform())
+    };
+    let mut out = Vec::new();
+    for i in 0..6000 {
+        let o = inside(rng);
+        let d = match i % 4 {
+            0 => {
+                let e = inside(rng);
+                std::array::from_fn(|k| e[k] - o[k])
+            }
+            1 => {
+                // Towards a vertex or an edge's midpoint, sometimes beyond.
+                let t = scene.1[(rng.next_u64() % scene.1.len() as u64) as usize];
+                let a = scene.0[t[0] as usize].map(f64::from);
+                let b = scene.0[t[1] as usize].map(f64::from);
+                let p: [f64; 3] = if rng.uniform() < 0.5 {
+                    a
+                } else {
+                    std::array::from_fn(|k| 0.5 * (a[k] + b[k]))
+                };
+                let s = if rng.uniform() < 0.5 { 1.0 } else { 1.5 };
+                std::array::from_fn(|k| s * (p[k] - o[k]))
+            }
+            _ => {
+                // Along an axis or in an axis plane (zero components).
+                let mut d: [f64; 3] = std::array::from_fn(|k| (rng.uniform() - 0.5) * 2.0 * ext[k]);
+                d[(rng.next_u64() % 3) as usize] = 0.0;
+                if i % 4 == 3 {
+                    d[(rng.next_u64() % 3) as usize] = 0.0;
+                }
+                d
+            }
+        };
+        // From a lattice point (on box planes) for half of the lattice's.
+        let o = match lattice {
+            Some((scale, offset)) if i % 2 == 0 => {
+                o.map(|v| ((v - offset) / scale).round() * scale + offset)
+            }
+            _ => o,
+        };
+        out.push((o, d));
+    }
+    out
+}
+
+/// Both traversals on every segment: the same blocked-or-not answer, and
+/// the named blocker is one [`Bvh::hits_in_leaf`] confirms. Returns how
+/// many were blocked.
+fn check(name: &str, scene: &Soup, segs: &[([f64; 3], [f64; 3])]) -> usize {
+    let bvh = Bvh::build(&scene.0, &scene.1, [0.0; 3]);
+    let wide = Bvh4::build(&bvh);
+    let portable = Bvh4::build(&bvh).portable();
+    let mut blocked = 0;
+    for (i, &(o, d)) in segs.iter().enumerate() {
+        let reference = bvh.any_hit(o, d, |_, _| false).is_some();
+        for (path, b4) in [("vector", &wide), ("portable", &portable)] {
+            let hit = b4.any_hit_leaf(&bvh, o, d);
+            assert_eq!(
+                hit.is_some(),
+                reference,
+                "{name}: segment {i} from {o:?} along {d:?}: the {path} four-wide BVH says blocked = {}, the binary one {reference}",
+                hit.is_some()
+            );
+            if let Some((leaf, k)) = hit {
+                assert!(
+                    bvh.hits_in_leaf(leaf, k, o, d),
+                    "{name}: segment {i}: the {path} blocker (leaf {leaf}, triangle {k}) is not confirmed by hits_in_leaf"
+                );
+            }
+        }
+        blocked += reference as usize;
+    }
+    // Neither all blocked nor all clear, or the comparison proves little.
+    let n = segs.len();
+    assert!(
+        blocked > n / 20 && blocked < n - n / 20,
+        "{name}: {blocked} of {n} segments blocked"
+    );
+    blocked
+}
+
+#[test]
+fn four_wide_and_binary_traversals_agree_on_scenes_that_are_not_kind() {
+    let mut rng = SplitMix64::new(7);
+    for (name, scale, offset) in [
+        ("lattice", 1.0, 0.0),
+        ("millimetre lattice", 1e-3, 0.0),
+        ("kilometre lattice far from the origin", 1e3, 1e5),
+    ] {
+        let s = lattice(scale, offset);
+        let segs = segments(&mut rng, &s, Some((scale, offset)));
+        check(name, &s, &segs);
+    }
+    let s = slivers(&mut rng);
+    let segs = segments(&mut rng, &s, None);
+    check("slivers", &s, &segs);
+    for (name, size, at) in [
+        ("soup", 10.0, 0.0),
+        ("kilometre soup", 3e3, -2e5),
+        ("millimetre soup", 2e-3, 1e-2),
+    ] {
+        let s = soup(&mut rng, size, at);
+        let segs = segments(&mut rng, &s, None);
+        check(name, &s, &segs);
+    }
+}
+
+#[test]
+fn the_four_box_test_passes_every_box_the_binary_test_passes() {
+    let mut rng = SplitMix64::new(11);
+    let mut passed = [0usize; 2];
+    for trial in 0..20_000 {
+        // Boxes and origins on a coarse lattice half the time, so that
+        // origins lie on box planes; directions with zero components.
+        let coarse = trial % 2 == 0;
+        let val = |rng: &mut SplitMix64| -> f64 {
+            let v = rng.uniform() * 8.0 - 4.0;
+            if coarse {
+                v.round()
+            } else {
+                v
+            }
+        };
+        let mut n4 = Node4 {
+            lo: [[0.0; 4]; 3],
+            hi: [[0.0; 4]; 3],
+            child: [0; 4],
+            valid: 15,
+        };
+        let mut nodes = [Node::default(); 4];
+        for (c, node) in nodes.iter_mut().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (val(&mut rng) as f32, val(&mut rng) as f32);
+                node.min[k] = a.min(b);
+                node.max[k] = a.max(b);
+                n4.lo[k][c] = node.min[k] as f64;
+                n4.hi[k][c] = node.max[k] as f64;
+            }
+        }
+        let o: [f64; 3] = std::array::from_fn(|_| val(&mut rng));
+        let mut d: [f64; 3] = std::array::from_fn(|_| val(&mut rng) * 2.0);
+        if trial % 3 == 0 {
+            d[(rng.next_u64() % 3) as usize] = 0.0;
+        }
+        let inv = d.map(|x| 1.0 / x);
+        let portable = test4_portable(&n4, o, inv);
+        #[cfg(target_arch = "x86_64")]
+        if is_x86_feature_detected!("avx") {
+            // SAFETY: AVX checked above.
+            let vector = unsafe { radiosity::core::bvh4::test4_avx(&n4, o, inv) };
+            assert_eq!(
+                vector, portable,
+                "trial {trial}: AVX and portable four-box tests differ"
+            );
+        }
+        let nan = (0..3)
+            .any(|k| d[k] == 0.0 && (0..4).any(|c| n4.lo[k][c] == o[k] || n4.hi[k][c] == o[k]));
+        for (c, node) in nodes.iter().enumerate() {
+            let binary = slab(node, o, inv).is_some();
+            let four = portable & (1 << c) != 0;
+            assert!(
+                !binary || four,
+                "trial {trial}: box {c} passes the binary slab test but not the four-box one"
+            );
+            if !nan {
+                assert_eq!(binary, four, "trial {trial}: box {c} without a NaN product");
+            }
+            passed[binary as usize] += 1;
+        }
+    }
+    assert!(
+        passed[0] > 10_000 && passed[1] > 4_000,
+        "{passed:?} boxes missed and met"
+    );
+}
