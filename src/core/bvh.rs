@@ -356,6 +356,23 @@ impl Bvh {
                 n.max[k] += pad;
             }
         }
+        // The pads are rounded to f32 and depend on each box's own bounds,
+        // so a child's padded box can stick out of its parent's by an ulp.
+        // Grow parents to hold their children (children come after their
+        // parent), so that a box's slab test passing implies its
+        // ancestors' pass: what `hits_in_leaf` and the four-wide traversal
+        // (`core::bvh4`) rely on.
+        for i in (0..nodes.len()).rev() {
+            if nodes[i].count == 0 {
+                let l = nodes[i].left as usize;
+                for k in 0..3 {
+                    let lo = nodes[l].min[k].min(nodes[l + 1].min[k]);
+                    let hi = nodes[l].max[k].max(nodes[l + 1].max[k]);
+                    nodes[i].min[k] = nodes[i].min[k].min(lo);
+                    nodes[i].max[k] = nodes[i].max[k].max(hi);
+                }
+            }
+        }
         let mut certs_all = certificates(positions, triangles, shift, &mut stats);
         for sq in squares {
             let c = sq.corners.map(local64);

@@ -161,7 +161,7 @@ impl Bvh4 {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     unsafe fn any_hit_avx(&self, bvh: &Bvh, o: [f64; 3], d: [f64; 3]) -> Option<(u32, u32)> {
-        self.traverse(bvh, o, d, |n, o, inv| unsafe { test4_avx(n, o, inv) })
+        self.traverse(bvh, o, d, |n, o, inv, e| unsafe { test4_avx(n, o, inv, e) })
     }
 
     /// The traversal, with the four-box test `test` (inlined into each
@@ -172,7 +172,7 @@ impl Bvh4 {
         bvh: &Bvh,
         o: [f64; 3],
         d: [f64; 3],
-        test: impl Fn(&Node4, [f64; 3], [f64; 3]) -> u32,
+        test: impl Fn(&Node4, [f64; 3], [f64; 3], &mut [f64; 4]) -> u32,
     ) -> Option<(u32, u32)> {
         let inv = d.map(|x| 1.0 / x);
         let mut stack = [0u32; STACK4];
@@ -180,7 +180,8 @@ impl Bvh4 {
         let mut node = 0u32;
         loop {
             let n = &self.nodes[node as usize];
-            let mut bits = test(n, o, inv) & n.valid;
+            let mut entry = [0.0f64; 4];
+            let mut bits = test(n, o, inv, &mut entry) & n.valid;
             let mut next = None;
             while bits != 0 {
                 let c = bits.trailing_zeros() as usize;
@@ -216,6 +217,92 @@ impl Bvh4 {
     }
 }
 
+impl Bvh4 {
+    /// The nearest triangle of `bvh` crossing the segment `o + t d`, `t ∈
+    /// (0, 1]`: its leaf-order index and `t`, as [`Bvh::closest_hit`]
+    /// finds it (module doc: the same candidates, each leaf's own box
+    /// passing the binary slab test; where two triangles lie at exactly
+    /// the same `t`, the one met first, which the visiting order decides).
+    /// Children are visited nearer first, and a box entered beyond the
+    /// nearest hit so far is skipped.
+    pub fn closest_hit(&self, bvh: &Bvh, o: [f64; 3], d: [f64; 3]) -> Option<(u32, f64)> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx {
+            // SAFETY: `avx` is set only where the CPU reports AVX.
+            return unsafe { self.closest_avx(bvh, o, d) };
+        }
+        self.closest(bvh, o, d, test4_portable)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn closest_avx(&self, bvh: &Bvh, o: [f64; 3], d: [f64; 3]) -> Option<(u32, f64)> {
+        self.closest(bvh, o, d, |n, o, inv, e| unsafe { test4_avx(n, o, inv, e) })
+    }
+
+    #[inline(always)]
+    fn closest(
+        &self,
+        bvh: &Bvh,
+        o: [f64; 3],
+        d: [f64; 3],
+        test: impl Fn(&Node4, [f64; 3], [f64; 3], &mut [f64; 4]) -> u32,
+    ) -> Option<(u32, f64)> {
+        let inv = d.map(|x| 1.0 / x);
+        let mut best: Option<(u32, f64)> = None;
+        let mut stack = [(0u32, 0.0f64); STACK4];
+        stack[0] = (0, 0.0);
+        let mut sp = 1usize;
+        while sp > 0 {
+            sp -= 1;
+            let (node, entry) = stack[sp];
+            if best.is_some_and(|(_, bt)| entry > bt) {
+                continue;
+            }
+            let n = &self.nodes[node as usize];
+            let mut t0 = [0.0f64; 4];
+            let mut bits = test(n, o, inv, &mut t0) & n.valid;
+            let mut inner = [(0.0f64, 0u32); 4];
+            let mut m = 0;
+            while bits != 0 {
+                let c = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if best.is_some_and(|(_, bt)| t0[c] > bt) {
+                    continue;
+                }
+                let child = n.child[c];
+                if child & LEAF == 0 {
+                    inner[m] = (t0[c], child);
+                    m += 1;
+                    continue;
+                }
+                let ln = &bvh.nodes[(child & !LEAF) as usize];
+                if slab(ln, o, inv).is_none() {
+                    continue;
+                }
+                for k in ln.left..ln.left + ln.count {
+                    if let Some(t) = intersect(&bvh.tris[k as usize], o, d) {
+                        if t > 0.0 && best.is_none_or(|(_, bt)| t < bt) {
+                            best = Some((k, t));
+                        }
+                    }
+                }
+            }
+            // The farther pushed first, so the nearer is popped first.
+            inner[..m].sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            for &(t, c) in &inner[..m] {
+                assert!(sp < STACK4, "BVH4 traversal stack overflow");
+                stack[sp] = (c, t);
+                sp += 1;
+            }
+        }
+        best
+    }
+}
+
 fn empty() -> Node4 {
     Node4 {
         lo: [[0.0; 4]; 3],
@@ -238,12 +325,13 @@ fn avx() -> bool {
 }
 
 /// The four slab tests of `n` against the segment from `o` with inverse
-/// direction `inv`: bit `c` set when child `c`'s box meets `t ∈ [0, 1]`.
+/// direction `inv`: bit `c` set when child `c`'s box meets `t ∈ [0, 1]`,
+/// and `entry[c]` the segment's entry parameter into it.
 /// Per axis `a = (lo − o) inv`, `b = (hi − o) inv`, then, as the vector
 /// instructions do, `min(a, b) = a < b ? a : b`, `max(a, b) = a > b ? a :
 /// b`, `t0 = lo > t0 ? lo : t0`, `t1 = hi < t1 ? hi : t1` (module doc: a
 /// NaN bound leaves `t0`, `t1` as they are).
-pub fn test4_portable(n: &Node4, o: [f64; 3], inv: [f64; 3]) -> u32 {
+pub fn test4_portable(n: &Node4, o: [f64; 3], inv: [f64; 3], entry: &mut [f64; 4]) -> u32 {
     let mut bits = 0;
     for c in 0..4 {
         let (mut t0, mut t1) = (0.0f64, 1.0f64);
@@ -255,6 +343,7 @@ pub fn test4_portable(n: &Node4, o: [f64; 3], inv: [f64; 3]) -> u32 {
             t0 = if lo > t0 { lo } else { t0 };
             t1 = if hi < t1 { hi } else { t1 };
         }
+        entry[c] = t0;
         if t0 <= t1 {
             bits |= 1 << c;
         }
@@ -269,7 +358,7 @@ pub fn test4_portable(n: &Node4, o: [f64; 3], inv: [f64; 3]) -> u32 {
 /// The CPU must support AVX.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
-pub unsafe fn test4_avx(n: &Node4, o: [f64; 3], inv: [f64; 3]) -> u32 {
+pub unsafe fn test4_avx(n: &Node4, o: [f64; 3], inv: [f64; 3], entry: &mut [f64; 4]) -> u32 {
     use std::arch::x86_64::*;
     let mut t0 = _mm256_setzero_pd();
     let mut t1 = _mm256_set1_pd(1.0);
@@ -284,5 +373,6 @@ pub unsafe fn test4_avx(n: &Node4, o: [f64; 3], inv: [f64; 3]) -> u32 {
         t0 = _mm256_max_pd(lo, t0);
         t1 = _mm256_min_pd(hi, t1);
     }
+    _mm256_storeu_pd(entry.as_mut_ptr(), t0);
     _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_LE_OQ>(t0, t1)) as u32
 }

@@ -153,6 +153,13 @@ impl DirectLight {
             .is_none()
     }
 
+    /// The nearest scene triangle on the segment `o + t d`, `t ∈ (0, 1]`
+    /// (leaf-order index into [`DirectLight::bvh`] and `t`), through the
+    /// four-wide view ([`Bvh4::closest_hit`]: [`Bvh::closest_hit`]'s answer).
+    pub fn closest_hit(&self, o: [f64; 3], d: [f64; 3]) -> Option<(u32, f64)> {
+        self.bvh4.closest_hit(&self.bvh, o, d)
+    }
+
     /// The BVH of the scene's triangles (world coordinates, no shift).
     pub fn bvh(&self) -> &Bvh {
         &self.bvh

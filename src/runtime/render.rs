@@ -149,7 +149,7 @@ pub fn render(
             for px in 0..width {
                 s.pixels += 1;
                 let (o, d) = rays.ray(px, py);
-                let Some((k, t)) = bvh.closest_hit(o, scale(d, far)) else {
+                let Some((k, t)) = rt.direct.closest_hit(o, scale(d, far)) else {
                     continue;
                 };
                 s.hits += 1;
