@@ -8,7 +8,7 @@
 
 use crate::core::bvh::Bvh;
 use crate::core::bvh4::Bvh4;
-use crate::core::light::incident;
+use crate::core::light::{incident_prepared, Prepared};
 use crate::core::math::{add, dot, f64s, normalize, scale, sub, SplitMix64};
 use crate::core::patch::Patch;
 use crate::core::scene::Scene;
@@ -73,9 +73,10 @@ impl DirectLight {
         // light or one point, the same sum term by term as one running
         // total over every (point, light).
         let mut cache = ShadowCache::new(lights.len());
+        let prepared = Prepared::all(lights);
         let mut d = [0.0; 3];
         for &(x, n) in points {
-            let e = self.at_point_cached(x, n, lights, &mut cache);
+            let e = self.at_point_cached(x, n, &prepared, &mut cache);
             for (dc, e) in d.iter_mut().zip(e) {
                 *dc += e;
             }
@@ -92,14 +93,15 @@ impl DirectLight {
         lights: &[Light],
     ) -> Vec<[f64; 3]> {
         let mut cache = ShadowCache::new(lights.len());
+        let prepared = Prepared::all(lights);
         points
             .iter()
-            .map(|&(x, n)| self.at_point_cached(x, n, lights, &mut cache))
+            .map(|&(x, n)| self.at_point_cached(x, n, &prepared, &mut cache))
             .collect()
     }
 
-    /// The irradiance at the point `x` with unit normal `n` from `lights`:
-    /// per light, its incident irradiance where the shadow ray (lifted
+    /// The irradiance at the point `x` with unit normal `n` from `lights`
+    /// ([`Prepared::all`] of the frame's lights): per light, its incident irradiance where the shadow ray (lifted
     /// [`DirectLight::offset`] along `n`) meets no triangle, summed in
     /// light order; the one definition [`DirectLight::at_points`] and
     /// [`DirectLight::at_points_each`] use. Per light, the triangle that blocked the last shadow ray
@@ -112,14 +114,14 @@ impl DirectLight {
         &self,
         x: [f64; 3],
         n: [f64; 3],
-        lights: &[Light],
+        lights: &[Prepared],
         cache: &mut ShadowCache,
     ) -> [f64; 3] {
         let x = add(x, scale(n, self.offset));
         let mut d = [0.0; 3];
         cache.last.resize(lights.len(), None);
         for (light, blocker) in lights.iter().zip(cache.last.iter_mut()) {
-            if let Some(inc) = incident(light, x, n, self.far) {
+            if let Some(inc) = incident_prepared(light, x, n, self.far) {
                 let dir = sub(inc.shadow_end, x);
                 let blocked = match *blocker {
                     Some((leaf, k)) if self.bvh.hits_in_leaf(leaf, k, x, dir) => true,

@@ -46,46 +46,110 @@ pub fn spot_profile(angle_deg: f64, cone_deg: f64, beam_deg: f64) -> f64 {
     }
 }
 
+/// A light with what [`incident`] computes from the light alone done once
+/// (f64 values, the normalised direction or axis): per-point work then
+/// starts from here, and gives the same bits as from the [`Light`]. Shadow
+/// rays cast per sample point and pixel made those normalisations a sixth
+/// of a frame's direct light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Prepared {
+    Directional {
+        /// Towards the light: minus the travel direction, normalised.
+        l: [f64; 3],
+        irradiance: [f64; 3],
+    },
+    Point {
+        position: [f64; 3],
+        intensity: [f64; 3],
+    },
+    Spot {
+        position: [f64; 3],
+        /// The normalised axis.
+        axis: [f64; 3],
+        intensity: [f64; 3],
+        cone_deg: f64,
+        beam_deg: f64,
+    },
+}
+
+impl Prepared {
+    pub fn new(light: &Light) -> Prepared {
+        match *light {
+            Light::Directional {
+                direction,
+                irradiance,
+            } => Prepared::Directional {
+                l: normalize(f64s(direction)).map(|c| -c),
+                irradiance: f64s(irradiance),
+            },
+            Light::Point {
+                position,
+                intensity,
+            } => Prepared::Point {
+                position: f64s(position),
+                intensity: f64s(intensity),
+            },
+            Light::Spot {
+                position,
+                direction,
+                intensity,
+                cone_angle_deg,
+                beam_angle_deg,
+            } => Prepared::Spot {
+                position: f64s(position),
+                axis: normalize(f64s(direction)),
+                intensity: f64s(intensity),
+                cone_deg: cone_angle_deg as f64,
+                beam_deg: beam_angle_deg as f64,
+            },
+        }
+    }
+
+    /// Every light of `lights`, prepared.
+    pub fn all(lights: &[Light]) -> Vec<Prepared> {
+        lights.iter().map(Prepared::new).collect()
+    }
+}
+
 /// The irradiance `light` puts on a surface at `x` with unit normal `n`,
 /// unshadowed (module doc); `None` when it is zero (facing away, outside a
 /// spot's cone, or no power). `far` is the length of the shadow ray towards
 /// a directional light (beyond the scene's extent).
 pub fn incident(light: &Light, x: [f64; 3], n: [f64; 3], far: f64) -> Option<Incident> {
-    match light {
-        Light::Directional {
-            direction,
-            irradiance,
-        } => {
-            let l = normalize(f64s(*direction)).map(|c| -c);
+    incident_prepared(&Prepared::new(light), x, n, far)
+}
+
+/// [`incident`] of a [`Prepared`] light: the one definition.
+pub fn incident_prepared(light: &Prepared, x: [f64; 3], n: [f64; 3], far: f64) -> Option<Incident> {
+    match *light {
+        Prepared::Directional { l, irradiance } => {
             let cos = dot(n, l);
             if !(cos > 0.0) {
                 return None;
             }
             Some(Incident {
-                irradiance: f64s(*irradiance).map(|e| e * cos),
+                irradiance: irradiance.map(|e| e * cos),
                 shadow_end: std::array::from_fn(|k| x[k] + far * l[k]),
             })
         }
-        Light::Point {
+        Prepared::Point {
             position,
             intensity,
-        } => point(x, n, f64s(*position), f64s(*intensity), 1.0),
-        Light::Spot {
+        } => point(x, n, position, intensity, 1.0),
+        Prepared::Spot {
             position,
-            direction,
+            axis,
             intensity,
-            cone_angle_deg,
-            beam_angle_deg,
+            cone_deg,
+            beam_deg,
         } => {
-            let pos = f64s(*position);
-            let axis = normalize(f64s(*direction));
-            let from_light = normalize(sub(x, pos));
+            let from_light = normalize(sub(x, position));
             let angle = dot(axis, from_light).clamp(-1.0, 1.0).acos().to_degrees();
-            let profile = spot_profile(angle, *cone_angle_deg as f64, *beam_angle_deg as f64);
+            let profile = spot_profile(angle, cone_deg, beam_deg);
             if !(profile > 0.0) {
                 return None;
             }
-            point(x, n, pos, f64s(*intensity), profile)
+            point(x, n, position, intensity, profile)
         }
     }
 }

@@ -129,7 +129,8 @@ pub fn render(
     height: usize,
     albedo: &Albedo,
 ) -> (Image, RenderStats) {
-    let (camera, lights, scales) = (&config.camera, &config.lights[..], &config.emission);
+    let (camera, scales) = (&config.camera, &config.emission);
+    let lights = &crate::core::light::Prepared::all(&config.lights)[..];
     let start = Instant::now();
     let scene = &rt.scene;
     let bvh = rt.direct.bvh();
