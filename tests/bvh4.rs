@@ -267,8 +267,8 @@ fn the_four_box_test_passes_every_box_the_binary_test_passes() {
                 let (a, b) = (val(&mut rng) as f32, val(&mut rng) as f32);
                 node.min[k] = a.min(b);
                 node.max[k] = a.max(b);
-                n4.lo[k][c] = node.min[k] as f64;
-                n4.hi[k][c] = node.max[k] as f64;
+                n4.lo[k][c] = node.min[k];
+                n4.hi[k][c] = node.max[k];
             }
         }
         let o: [f64; 3] = std::array::from_fn(|_| val(&mut rng));
@@ -294,8 +294,9 @@ fn the_four_box_test_passes_every_box_the_binary_test_passes() {
                 "trial {trial}: AVX and portable entry parameters differ"
             );
         }
-        let nan = (0..3)
-            .any(|k| d[k] == 0.0 && (0..4).any(|c| n4.lo[k][c] == o[k] || n4.hi[k][c] == o[k]));
+        let nan = (0..3).any(|k| {
+            d[k] == 0.0 && (0..4).any(|c| n4.lo[k][c] as f64 == o[k] || n4.hi[k][c] as f64 == o[k])
+        });
         for (c, node) in nodes.iter().enumerate() {
             let exact = slab(node, o, inv);
             let binary = exact.is_some();
