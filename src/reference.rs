@@ -95,7 +95,7 @@ impl<'a> PathTracer<'a> {
         for _ in 0..bounces.min(1000) {
             let d = cosine_direction(n, rng);
             let o = add(x, scale(n, offset));
-            let Some((k, t)) = bvh.closest_hit(o, scale(d, self.far)) else {
+            let Some((k, t)) = self.direct.closest_hit(o, scale(d, self.far)) else {
                 break;
             };
             let tri = bvh.order[k as usize] as usize;
@@ -190,7 +190,7 @@ impl PathTracer<'_> {
         let mut hits = 0usize;
         for _ in 0..rays {
             let d = cosine_direction(n, &mut rng);
-            if let Some((k, _)) = bvh.closest_hit(o, scale(d, self.far)) {
+            if let Some((k, _)) = self.direct.closest_hit(o, scale(d, self.far)) {
                 let tri = bvh.order[k as usize] as usize;
                 if dot(self.scene.triangle_normal(tri), d) < 0.0 {
                     hits += 1;
