@@ -45,6 +45,7 @@ use crate::bake::error::BakeError;
 use crate::bake::pieces::{self, PieceGeo, PieceLookup, CUT_INSET};
 use crate::bake::voxelize::{Cover, Voxelization};
 use crate::core::bvh::Bvh;
+use crate::core::bvh4::Bvh4;
 use crate::core::math::{add, dot, norm, normalize, scale, sub, tangent_basis, SplitMix64};
 use crate::core::scene::Scene;
 use rayon::prelude::*;
@@ -258,6 +259,9 @@ pub(crate) enum Hit {
 /// per stage that casts rays from the real surfaces.
 pub(crate) struct RayScene {
     pub bvh: Bvh,
+    /// Its four-wide view, which the rays traverse ([`Bvh4::closest_hit`]:
+    /// the binary traversal's nearest hit, four boxes per test).
+    bvh4: Bvh4,
     normals: Vec<[f64; 3]>,
     lookup: PieceLookup,
     shift: [f64; 3],
@@ -273,8 +277,10 @@ impl RayScene {
             .map(|a| (hi[a] - lo[a]) as f64)
             .fold(0.0, f64::max)
             .max(1e-30);
+        let bvh = Bvh::build(&scene.positions, &scene.triangles, shift);
         RayScene {
-            bvh: Bvh::build(&scene.positions, &scene.triangles, shift),
+            bvh4: Bvh4::build(&bvh),
+            bvh,
             normals: scene.triangle_normals(),
             lookup: PieceLookup::new(vox, scene.triangles.len()),
             shift,
@@ -302,7 +308,7 @@ impl Tracer<'_> {
     pub(crate) fn trace(&self, x: [f64; 3], n: [f64; 3], d: [f64; 3]) -> Hit {
         let rs = self.rays;
         let o = sub(add(x, scale(n, rs.offset)), rs.shift);
-        let Some((mut leaf, tp)) = rs.bvh.closest_hit(o, scale(d, rs.far)) else {
+        let Some((mut leaf, tp)) = rs.bvh4.closest_hit(&rs.bvh, o, scale(d, rs.far)) else {
             return Hit::Escaped;
         };
         if dot(geo_normal(&rs.bvh, leaf), d) >= 0.0 {
