@@ -193,3 +193,79 @@ fn light_through_dropped_near_field_links_still_arrives() {
     );
     assert!(f_far.rel_rms < f_no.rel_rms);
 }
+
+/// The correction skips the links of unlit patches and their own `δ`
+/// (`NearFieldWeights::correction`): that must give the bits of the plain
+/// sums over every link, with most patches dark, some at exactly −0 (an
+/// unlit patch's `ρ · 0` can be), and some lit.
+#[test]
+fn skipping_unlit_patches_in_the_correction_changes_no_bit() {
+    use radiosity::core::math::SplitMix64;
+    use radiosity::runtime::near_field::NearFieldWeights;
+    let (n, m) = (900usize, 8usize);
+    let mut rng = SplitMix64::new(3);
+    let mut w = NearFieldWeights {
+        m,
+        starts: vec![0],
+        ..Default::default()
+    };
+    let weight = |rng: &mut SplitMix64| -> [f32; 16] {
+        std::array::from_fn(|g| {
+            if g < m {
+                (rng.uniform() - 0.5) as f32 * 1e-2
+            } else {
+                0.0
+            }
+        })
+    };
+    for _ in 0..n {
+        for _ in 0..rng.next_u64() % 12 {
+            w.patch.push((rng.next_u64() % n as u64) as u32);
+            w.weights.push(weight(&mut rng));
+        }
+        w.starts.push(w.patch.len() as u32);
+        w.own.push(weight(&mut rng));
+    }
+    // Each channel lit on its own patches: a patch lit in one channel only
+    // is lit.
+    let b: [Vec<f32>; 3] = std::array::from_fn(|ch| {
+        (0..n * m)
+            .map(|k| match (k / m + 3 * ch) % 10 {
+                0 => rng.uniform() as f32,
+                1 => -0.0,
+                _ => 0.0,
+            })
+            .collect()
+    });
+    let got = w.correction(&b);
+    let mut lit_links = 0;
+    for i in 0..n {
+        for ch in 0..3 {
+            let mut delta = 0.0f32;
+            for g in 0..m {
+                delta += w.own[i][g] * b[ch][i * m + g];
+            }
+            let mut c = 0.0f32;
+            for l in w.starts[i] as usize..w.starts[i + 1] as usize {
+                let base = w.patch[l] as usize * m;
+                let mut s = 0.0f32;
+                for g in 0..m {
+                    s += w.weights[l][g] * b[ch][base + g];
+                }
+                c += s;
+                lit_links += (s != 0.0) as usize;
+            }
+            assert_eq!(
+                got.c[ch][i].to_bits(),
+                c.to_bits(),
+                "c of patch {i}, channel {ch}"
+            );
+            assert_eq!(
+                got.delta[ch][i].to_bits(),
+                delta.to_bits(),
+                "δ of patch {i}, channel {ch}"
+            );
+        }
+    }
+    assert!(lit_links > 100, "{lit_links} links to lit patches");
+}

@@ -76,10 +76,11 @@ pub fn irradiance(
 /// [`irradiance`]'s per-point values.
 pub fn reflected_at_points(baked: &Baked, d: &[Vec<f32>; 3], samples: usize) -> [Vec<f32>; 3] {
     std::array::from_fn(|c| {
-        d[c].iter()
-            .enumerate()
-            .map(|(k, &dv)| baked.patches[k / samples].albedo[c] * dv)
-            .collect()
+        let mut out = Vec::with_capacity(d[c].len());
+        for (p, points) in baked.patches.iter().zip(d[c].chunks(samples.max(1))) {
+            out.extend(points.iter().map(|&dv| p.albedo[c] * dv));
+        }
+        out
     })
 }
 

@@ -182,12 +182,18 @@ impl Runtime {
     /// One product `T̃ · b0` over `b0`'s active columns (all columns when
     /// column skipping is off).
     pub fn product(&self, b0: &[Vec<f32>; 3]) -> ([Vec<f32>; 3], GatherStats, usize) {
+        self.product_over(b0, !self.options.skip_columns)
+    }
+
+    /// [`Runtime::product`] over every column, or over `b0`'s active ones
+    /// whatever the options say.
+    pub fn product_over(
+        &self,
+        b0: &[Vec<f32>; 3],
+        every_column: bool,
+    ) -> ([Vec<f32>; 3], GatherStats, usize) {
         let refs = [&b0[0][..], &b0[1][..], &b0[2][..]];
-        let active = ActiveColumns::of(
-            refs,
-            self.baked.matrix.index.tile,
-            !self.options.skip_columns,
-        );
+        let active = ActiveColumns::of(refs, self.baked.matrix.index.tile, every_column);
         let mut h = std::array::from_fn(|_| vec![0.0; self.n()]);
         let stats = self.gather.gather(refs, &active, &mut h);
         (h, stats, active.active_groups)
@@ -208,7 +214,19 @@ impl Runtime {
         b0: &[Vec<f32>; 3],
         d_points: &[Vec<f32>; 3],
     ) -> ([Vec<f32>; 3], GatherStats, usize) {
-        self.corrected_product(b0, self.near_correction(d_points).as_ref())
+        self.light_product_over(b0, d_points, !self.options.skip_columns)
+    }
+
+    /// [`Runtime::light_product`] over every column, or over the active
+    /// ones of its gather's input, whatever the options say: what a frame
+    /// computes for one light, near-field correction included.
+    pub fn light_product_over(
+        &self,
+        b0: &[Vec<f32>; 3],
+        d_points: &[Vec<f32>; 3],
+        every_column: bool,
+    ) -> ([Vec<f32>; 3], GatherStats, usize) {
+        self.corrected_over(b0, self.near_correction(d_points).as_ref(), every_column)
     }
 
     /// The near-field correction (`c` and `δ`) of a term whose direct
@@ -228,10 +246,20 @@ impl Runtime {
         b0: &[Vec<f32>; 3],
         near: Option<&NearTerms>,
     ) -> ([Vec<f32>; 3], GatherStats, usize) {
+        self.corrected_over(b0, near, !self.options.skip_columns)
+    }
+
+    fn corrected_over(
+        &self,
+        b0: &[Vec<f32>; 3],
+        near: Option<&NearTerms>,
+        every_column: bool,
+    ) -> ([Vec<f32>; 3], GatherStats, usize) {
         let Some(near) = near else {
-            return self.product(b0);
+            return self.product_over(b0, every_column);
         };
-        let (mut h, g, active) = self.product(&near.gather_input(b0, &self.baked.patches));
+        let input = near.gather_input(b0, &self.baked.patches);
+        let (mut h, g, active) = self.product_over(&input, every_column);
         for (hc, cc) in h.iter_mut().zip(&near.c) {
             for (hv, cv) in hc.iter_mut().zip(cc) {
                 *hv += cv;

@@ -12,6 +12,11 @@ use crate::bakefile::near_field::NearField;
 use crate::bakefile::surface::{PatchSamples, SAMPLES_PER_PATCH};
 use rayon::prelude::*;
 
+/// Patches per parallel task of [`NearFieldWeights::correction`]: a patch
+/// is a few dozen multiply-adds, and one task per patch spent more in the
+/// scheduler than in them.
+const PATCHES_PER_TASK: usize = 256;
+
 /// The correction's weights for a run time lighting `m` sample points per
 /// patch.
 #[derive(Clone, Debug, Default)]
@@ -124,11 +129,26 @@ impl NearFieldWeights {
     pub fn correction(&self, b: &[Vec<f32>; 3]) -> NearTerms {
         let n = self.starts.len() - 1;
         let m = self.m;
+        // The patches with some non-zero exitance at a lit point. An
+        // unlit patch adds exactly +0 to every sum it enters (w · ±0 = ±0
+        // summed onto a +0 start, and a sum that starts at +0 never
+        // becomes −0), so its links and its own δ are skipped with the
+        // same bits: a spot lighting 8 % of the interior's 3,499 patches
+        // touches a tenth of the links.
+        let lit: Vec<bool> = (0..n)
+            .into_par_iter()
+            .with_min_len(PATCHES_PER_TASK)
+            .map(|j| {
+                b.iter()
+                    .any(|ch| ch[j * m..(j + 1) * m].iter().any(|&v| v != 0.0))
+            })
+            .collect();
         let rows: Vec<([f32; 3], [f32; 3])> = (0..n)
             .into_par_iter()
+            .with_min_len(PATCHES_PER_TASK)
             .map(|i| {
                 let mut delta = [0.0f32; 3];
-                if let Some(e) = self.own.get(i) {
+                if let Some(e) = self.own.get(i).filter(|_| lit[i]) {
                     for (ch, d) in delta.iter_mut().enumerate() {
                         for g in 0..m {
                             *d += e[g] * b[ch][i * m + g];
@@ -137,6 +157,9 @@ impl NearFieldWeights {
                 }
                 let mut c = [0.0f32; 3];
                 for l in self.starts[i] as usize..self.starts[i + 1] as usize {
+                    if !lit[self.patch[l] as usize] {
+                        continue;
+                    }
                     let base = self.patch[l] as usize * m;
                     let w = &self.weights[l];
                     for (ch, cc) in c.iter_mut().enumerate() {
