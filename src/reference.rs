@@ -19,6 +19,7 @@
 //! Seeded per point: the same inputs give the same numbers.
 
 use crate::core::direct::DirectLight;
+use crate::core::light::Prepared;
 use crate::core::math::{add, dot, normalize, scale, tangent_basis, SplitMix64};
 use crate::core::scene::Scene;
 use crate::core::scene_config::Light;
@@ -61,9 +62,10 @@ impl<'a> PathTracer<'a> {
         seed: u64,
     ) -> Estimate {
         let mut rng = SplitMix64::new(seed);
+        let lights = Prepared::all(lights);
         let (mut s, mut s2) = ([0.0f64; 3], [0.0f64; 3]);
         for _ in 0..paths {
-            let v = self.path(x, n, lights, bounces.unwrap_or(u32::MAX), &mut rng);
+            let v = self.path(x, n, &lights, bounces.unwrap_or(u32::MAX), &mut rng);
             for c in 0..3 {
                 s[c] += v[c];
                 s2[c] += v[c] * v[c];
@@ -83,7 +85,7 @@ impl<'a> PathTracer<'a> {
         &self,
         x0: [f64; 3],
         n0: [f64; 3],
-        lights: &[Light],
+        lights: &[Prepared],
         bounces: u32,
         rng: &mut SplitMix64,
     ) -> [f64; 3] {
@@ -105,7 +107,7 @@ impl<'a> PathTracer<'a> {
             }
             let y = add(o, scale(d, t * self.far));
             let m = &self.scene.materials[self.scene.triangle_material[tri] as usize];
-            let dy = self.direct.at_points(&[(y, ng)], lights);
+            let dy = self.direct.at_prepared_points(&[(y, ng)], lights);
             for c in 0..3 {
                 let rho = m.albedo[c] as f64;
                 h[c] += beta[c] * (m.emission[c] as f64 + rho * dy[c]);

@@ -240,17 +240,17 @@ fn skipping_unlit_patches_in_the_correction_changes_no_bit() {
     let got = w.correction(&b);
     let mut lit_links = 0;
     for i in 0..n {
-        for ch in 0..3 {
+        for (ch, bc) in b.iter().enumerate() {
             let mut delta = 0.0f32;
             for g in 0..m {
-                delta += w.own[i][g] * b[ch][i * m + g];
+                delta += w.own[i][g] * bc[i * m + g];
             }
             let mut c = 0.0f32;
             for l in w.starts[i] as usize..w.starts[i + 1] as usize {
                 let base = w.patch[l] as usize * m;
                 let mut s = 0.0f32;
                 for g in 0..m {
-                    s += w.weights[l][g] * b[ch][base + g];
+                    s += w.weights[l][g] * bc[base + g];
                 }
                 c += s;
                 lit_links += (s != 0.0) as usize;

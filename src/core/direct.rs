@@ -69,14 +69,22 @@ impl DirectLight {
     /// each point, lifted [`DirectLight::offset`] along its normal, to
     /// [`crate::core::light::Incident::shadow_end`] ([`crate::core::light`] defines each light).
     pub fn at_points(&self, points: &[([f64; 3], [f64; 3])], lights: &[Light]) -> [f64; 3] {
+        self.at_prepared_points(points, &Prepared::all(lights))
+    }
+
+    /// [`DirectLight::at_points`] of lights prepared once.
+    pub fn at_prepared_points(
+        &self,
+        points: &[([f64; 3], [f64; 3])],
+        lights: &[Prepared],
+    ) -> [f64; 3] {
         // Per point (sharing blockers), then summed in order: with one
         // light or one point, the same sum term by term as one running
         // total over every (point, light).
         let mut cache = ShadowCache::new(lights.len());
-        let prepared = Prepared::all(lights);
         let mut d = [0.0; 3];
         for &(x, n) in points {
-            let e = self.at_point_cached(x, n, &prepared, &mut cache);
+            let e = self.at_point_cached(x, n, lights, &mut cache);
             for (dc, e) in d.iter_mut().zip(e) {
                 *dc += e;
             }
@@ -92,11 +100,20 @@ impl DirectLight {
         points: &[([f64; 3], [f64; 3])],
         lights: &[Light],
     ) -> Vec<[f64; 3]> {
+        self.at_prepared_points_each(points, &Prepared::all(lights))
+    }
+
+    /// [`DirectLight::at_points_each`] of lights prepared once (per frame,
+    /// not per patch).
+    pub fn at_prepared_points_each(
+        &self,
+        points: &[([f64; 3], [f64; 3])],
+        lights: &[Prepared],
+    ) -> Vec<[f64; 3]> {
         let mut cache = ShadowCache::new(lights.len());
-        let prepared = Prepared::all(lights);
         points
             .iter()
-            .map(|&(x, n)| self.at_point_cached(x, n, &prepared, &mut cache))
+            .map(|&(x, n)| self.at_point_cached(x, n, lights, &mut cache))
             .collect()
     }
 

@@ -12,6 +12,7 @@
 use crate::bakefile::baked::Baked;
 use crate::bakefile::surface::SAMPLES_PER_PATCH;
 use crate::core::direct::DirectLight;
+use crate::core::light::Prepared;
 use crate::core::scene_config::Light;
 use rayon::prelude::*;
 
@@ -40,6 +41,7 @@ pub fn irradiance(
 ) -> ([Vec<f32>; 3], [Vec<f32>; 3]) {
     let s = samples.clamp(1, SAMPLES_PER_PATCH);
     let n = baked.patches.len();
+    let lights = Prepared::all(lights);
     let per: Vec<(Vec<[f64; 3]>, [f64; 3])> = (0..n)
         .into_par_iter()
         .map(|j| {
@@ -53,7 +55,7 @@ pub fn irradiance(
                 })
                 .collect();
             // The patch's points share their occluders (DirectLight::at_points_each).
-            let points = dl.at_points_each(&at, lights);
+            let points = dl.at_prepared_points_each(&at, &lights);
             let mut mean = [0.0f64; 3];
             for p in &points {
                 for c in 0..3 {
