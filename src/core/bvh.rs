@@ -519,6 +519,25 @@ impl Bvh {
             && intersect(&self.tris[k as usize], o, d).is_some()
     }
 
+    /// Keeps in `best` the nearer of it and the triangles of the leaf `n`
+    /// crossing the segment `o + t d` at `t ∈ (0, 1]` (the first met on a
+    /// tie): the leaf step of both nearest-hit traversals.
+    pub fn nearest_in_leaf(
+        &self,
+        n: &Node,
+        o: [f64; 3],
+        d: [f64; 3],
+        best: &mut Option<(u32, f64)>,
+    ) {
+        for k in n.left..n.left + n.count {
+            if let Some(t) = intersect(&self.tris[k as usize], o, d) {
+                if t > 0.0 && best.is_none_or(|(_, bt)| t < bt) {
+                    *best = Some((k, t));
+                }
+            }
+        }
+    }
+
     /// The nearest triangle crossing the segment `o + t d`, `t ∈ (0, 1]`:
     /// its leaf-order index and `t`; `None` when none does. Children are
     /// visited nearer first and a subtree is skipped once its box lies
@@ -542,13 +561,7 @@ impl Bvh {
             }
             let n = &self.nodes[node as usize];
             if n.count > 0 {
-                for k in n.left..n.left + n.count {
-                    if let Some(t) = intersect(&self.tris[k as usize], o, d) {
-                        if t > 0.0 && best.is_none_or(|(_, bt)| t < bt) {
-                            best = Some((k, t));
-                        }
-                    }
-                }
+                self.nearest_in_leaf(n, o, d, &mut best);
                 continue;
             }
             let (a, b) = (n.left, n.left + 1);

@@ -2,8 +2,9 @@
 //! patches ([`crate::core::direct`]) casts a shadow ray per sample point
 //! and light every frame, and those rays were three quarters of a CPU
 //! frame (the interior at 3,499 patches: 9.0 ms of direct light for 0.34 ms
-//! of gather; 5.5 ms through this view); the CPU renderer's primary rays
-//! ([`Bvh4::closest_hit`]) were a quarter of its image time.
+//! of gather; 5.5–5.8 ms through this view); the CPU renderer's primary
+//! rays ([`Bvh4::closest_hit`]) were a quarter of the `render` command's
+//! samples in `perf`.
 //!
 //! **Layout.** The binary hierarchy is collapsed top-down: a node's two
 //! children are replaced, the largest inner one (by surface area) first, by
@@ -286,15 +287,8 @@ impl Bvh4 {
                     continue;
                 }
                 let ln = &bvh.nodes[(child & !LEAF) as usize];
-                if slab(ln, o, inv).is_none() {
-                    continue;
-                }
-                for k in ln.left..ln.left + ln.count {
-                    if let Some(t) = intersect(&bvh.tris[k as usize], o, d) {
-                        if t > 0.0 && best.is_none_or(|(_, bt)| t < bt) {
-                            best = Some((k, t));
-                        }
-                    }
+                if slab(ln, o, inv).is_some() {
+                    bvh.nearest_in_leaf(ln, o, d, &mut best);
                 }
             }
             // The farther pushed first, so the nearer is popped first.
