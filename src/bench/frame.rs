@@ -782,10 +782,15 @@ fn gl_gather_row(
     });
     let row = match last {
         Some(Ok(h)) => {
+            // Relative to the CPU's value; where that is 0 and the GPU's
+            // is not, the whole value differs (100 %).
             let worst = (0..3)
                 .flat_map(|c| h[c].iter().zip(&h_cpu[c]))
-                .filter(|(_, &y)| y > 0.0)
-                .map(|(&x, &y)| ((x - y) / y).abs() as f64)
+                .map(|(&x, &y)| match (x == y, y == 0.0) {
+                    (true, _) => 0.0,
+                    (false, true) => 1.0,
+                    (false, false) => ((x - y) / y).abs() as f64,
+                })
                 .fold(0.0, f64::max);
             // The GPU's BC1/BC4 decoders may round an interpolated palette
             // byte differently from the CPU's (llvmpipe truncates it): one

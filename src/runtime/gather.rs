@@ -42,17 +42,18 @@
 //! vectors. A grey matrix (one BC4 channel) gathering three channels runs
 //! on AVX-512 as BC1 does, its accumulators in registers for a row of
 //! tiles and a block's palette one load from a table of every endpoint
-//! pair. BC6H, f16 and f32 are
-//! decoded a tile at a time into a buffer by the codec's own decoder and
-//! multiplied (the same skipping by tiles and column groups, arithmetic
-//! only inside a tile).
+//! pair. BC6H, f16 and f32 are re-laid by block column too and
+//! gathered in [`float`]: f16 and f32 at the memory's speed (one load,
+//! conversion and multiply-add per 16 values), BC6H block by block through
+//! `bcdec_rs`.
 
-use crate::bakefile::codec::decode::{decode_tile_bytes, Codebook};
+use crate::bakefile::codec::decode::Codebook;
 use crate::bakefile::codec::rgb9e5;
 use crate::bakefile::codec::scaled_input;
 use crate::bakefile::codec::{DenseFormat, Encoded, SparseValues};
 use rayon::prelude::*;
 
+mod float;
 #[cfg(target_arch = "x86_64")]
 mod x86;
 
@@ -203,6 +204,8 @@ pub struct CompressedGather {
     /// [`simd_kind`] where `simd`, else "none": decided once, not per
     /// block column.
     vector: &'static str,
+    /// The f16 and f32 kernel ([`float`]).
+    float_kernel: float::FloatKernel,
 }
 
 fn expand5(v: u32) -> u32 {
@@ -264,7 +267,7 @@ impl CompressedGather {
                 let src = &e.dense[start..start + len];
                 offsets.push(dense.len() as u32);
                 if block_bytes == 0 {
-                    dense.extend_from_slice(src);
+                    float::relay_tile(e.format, src, h, w, e.channels, &mut dense);
                     continue;
                 }
                 let (bh, bw) = (h / 4, w / 4);
@@ -444,6 +447,7 @@ impl CompressedGather {
             bytes_index: e.bytes_index() as u64,
             simd: simd && simd_available(),
             vector: if simd { simd_kind() } else { "none" },
+            float_kernel: float::FloatKernel::for_cpu(if simd { simd_kind() } else { "none" }),
         }
     }
 
@@ -577,160 +581,137 @@ impl CompressedGather {
         let stored = (self.row_start[tr + 1] - self.row_start[tr]) as u64;
         let row_of = &self.slot_of[tr * self.tiles_per_side..(tr + 1) * self.tiles_per_side];
         let touched = compact(visit, &active.tiles, row_of);
-        match self.format {
-            DenseFormat::Bc1 | DenseFormat::Bc4 => 'dense: {
-                // Per block row and output channel: 16 lanes (row r, column
-                // c of the block at lane 4r + c).
-                let bh = h / 4;
-                acc.clear();
-                acc.resize(bh, [[0.0f32; 16]; 3]);
-                // BC1 rows of tiles run in one vector call (on AVX-512 with
-                // the 24 accumulators of 8 block rows in registers, so for
-                // tiles of at most 32 rows, the encoder's; larger tiles,
-                // which the reader accepts, take the portable path there):
-                // the active block columns (byte offset, first column) are
-                // listed first.
-                // A grey BC4 matrix runs the same way on AVX-512
-                // ([`x86::bc4_grey_row_avx512`]).
-                let grey_fast = !self.bc4_pairs.is_empty() && bh <= 8;
-                let fast = grey_fast
-                    || (self.simd
-                        && self.format == DenseFormat::Bc1
-                        && (self.vector == "avx2" || bh <= 8));
-                fast_cols.clear();
-                if fast {
-                    // Only the list: counted by its length afterwards.
-                    for &slot in &visit[..touched] {
-                        let slot = slot as usize;
-                        let tc = self.cols[slot] as usize;
-                        let bw = tile.min(self.image - tc * tile) / 4;
-                        let base = self.offsets[slot] as usize;
-                        let (c0, col_bytes) = (tc * tile, 8 * bh);
-                        let mut bits = active.mask[tc] & low_bits(bw);
-                        while bits != 0 {
-                            let bc = bits.trailing_zeros() as usize;
-                            bits &= bits - 1;
-                            fast_cols.push(((base + bc * col_bytes) as u32, (c0 + 4 * bc) as u32));
-                        }
-                    }
-                    let k = fast_cols.len();
-                    stats.bytes_read += (k * 8 * bh) as u64;
-                    stats.entries += (k * 16 * bh) as u64;
-                }
-                for &slot in &visit[..if fast { 0 } else { touched }] {
+        'dense: {
+            // Per block row and output channel: 16 lanes (row r, column
+            // c of the block at lane 4r + c). An f16 or f32 tile may end
+            // in a partial block (padded with zeros at load).
+            let bh = h.div_ceil(4);
+            acc.clear();
+            acc.resize(bh, [[0.0f32; 16]; 3]);
+            // BC1 rows of tiles run in one vector call (on AVX-512 with
+            // the 24 accumulators of 8 block rows in registers, so for
+            // tiles of at most 32 rows, the encoder's; larger tiles,
+            // which the reader accepts, take the portable path there):
+            // the active block columns (byte offset, first column) are
+            // listed first.
+            // A grey BC4 matrix runs the same way on AVX-512
+            // ([`x86::bc4_grey_row_avx512`]).
+            let grey_fast = !self.bc4_pairs.is_empty() && bh <= 8;
+            let fast = grey_fast
+                || (self.simd
+                    && self.format == DenseFormat::Bc1
+                    && (self.vector == "avx2" || bh <= 8));
+            fast_cols.clear();
+            if fast {
+                // Only the list: counted by its length afterwards.
+                for &slot in &visit[..touched] {
                     let slot = slot as usize;
                     let tc = self.cols[slot] as usize;
-                    let w = tile.min(self.image - tc * tile);
-                    let bw = w / 4;
-                    let block_bytes = if self.format == DenseFormat::Bc1 {
-                        8
-                    } else {
-                        8 * self.channels
-                    };
-                    let col_bytes = bh * block_bytes;
+                    let bw = tile.min(self.image - tc * tile) / 4;
                     let base = self.offsets[slot] as usize;
-                    // The tile's active block columns, by their set bits.
+                    let (c0, col_bytes) = (tc * tile, 8 * bh);
                     let mut bits = active.mask[tc] & low_bits(bw);
-                    stats.bytes_read += (bits.count_ones() as usize * col_bytes) as u64;
-                    stats.entries += (bits.count_ones() as usize * 16 * bh) as u64;
                     while bits != 0 {
                         let bc = bits.trailing_zeros() as usize;
                         bits &= bits - 1;
-                        let c0 = tc * tile + 4 * bc;
-                        let mut b = [[0.0f32; 4]; 3];
-                        for (ch, bch) in b.iter_mut().enumerate().take(out_ch) {
-                            for (k, v) in bch.iter_mut().enumerate() {
-                                *v = b0[ch].get(c0 + k).copied().unwrap_or(0.0);
+                        fast_cols.push(((base + bc * col_bytes) as u32, (c0 + 4 * bc) as u32));
+                    }
+                }
+                let k = fast_cols.len();
+                stats.bytes_read += (k * 8 * bh) as u64;
+                stats.entries += (k * 16 * bh) as u64;
+            }
+            for &slot in &visit[..if fast { 0 } else { touched }] {
+                let slot = slot as usize;
+                let tc = self.cols[slot] as usize;
+                let w = tile.min(self.image - tc * tile);
+                let bw = w.div_ceil(4);
+                let col_bytes = match self.format {
+                    DenseFormat::Bc1 => 8 * bh,
+                    DenseFormat::Bc4 => 8 * self.channels * bh,
+                    f => float::column_bytes(f, bh, self.channels),
+                };
+                let base = self.offsets[slot] as usize;
+                // The tile's active block columns, by their set bits.
+                let mut bits = active.mask[tc] & low_bits(bw);
+                stats.bytes_read += (bits.count_ones() as usize * col_bytes) as u64;
+                stats.entries += (bits.count_ones() as usize * 16 * bh) as u64;
+                while bits != 0 {
+                    let bc = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let c0 = tc * tile + 4 * bc;
+                    let mut b = [[0.0f32; 4]; 3];
+                    for (ch, bch) in b.iter_mut().enumerate().take(out_ch) {
+                        for (k, v) in bch.iter_mut().enumerate() {
+                            *v = b0[ch].get(c0 + k).copied().unwrap_or(0.0);
+                        }
+                    }
+                    let col = &self.dense[base + bc * col_bytes..base + (bc + 1) * col_bytes];
+                    match self.format {
+                        DenseFormat::Bc1 => self.bc1_column(col, &b, acc),
+                        DenseFormat::Bc4 => self.bc4_column_dispatch(col, &b, out_ch, acc),
+                        f => {
+                            // The stored scale (1 for f32) into B0:
+                            // a power of two, so exact.
+                            for (oc, bc) in b.iter_mut().enumerate().take(out_ch) {
+                                let s = self.book.inv_scale[oc.min(self.channels - 1)];
+                                if f != DenseFormat::F32 {
+                                    bc.iter_mut().for_each(|v| *v *= s);
+                                }
                             }
-                        }
-                        let col = &self.dense[base + bc * col_bytes..base + (bc + 1) * col_bytes];
-                        if self.format == DenseFormat::Bc1 {
-                            self.bc1_column(col, &b, acc);
-                        } else {
-                            self.bc4_column_dispatch(col, &b, out_ch, acc);
-                        }
-                    }
-                }
-                #[cfg(target_arch = "x86_64")]
-                if grey_fast {
-                    let (d, cols, p) = (&self.dense[..], &fast_cols[..], &self.bc4_pairs[..]);
-                    // SAFETY: the pair table is built only where the CPU
-                    // reports AVX-512F.
-                    unsafe {
-                        if out_ch == 3 {
-                            bc4_grey_row::<3>(bh, d, cols, b0p, p, acc);
-                        } else {
-                            bc4_grey_row::<1>(bh, d, cols, b0p, p, acc);
-                        }
-                    }
-                } else if fast && self.vector == "avx2" {
-                    // SAFETY: `simd_kind` checked AVX2 and FMA.
-                    unsafe {
-                        let tables = self.bc1.as_ref().expect("BC1 tables");
-                        x86::bc1_row_avx2(&self.dense, fast_cols, b0p, tables, keys, acc);
-                    }
-                } else if fast {
-                    // SAFETY: `simd` is set only when the CPU reports AVX-512F.
-                    unsafe {
-                        let tables = self.bc1.as_ref().expect("BC1 tables");
-                        let (d, cols) = (&self.dense[..], &fast_cols[..]);
-                        let acc = &mut acc[..];
-                        // The common full row of tiles (8 block rows) with
-                        // its accumulators in registers; the last, shorter
-                        // one through the same code with fewer rows.
-                        match bh {
-                            8 => x86::bc1_row_avx512::<8>(d, cols, b0p, tables, keys512, acc),
-                            7 => x86::bc1_row_avx512::<7>(d, cols, b0p, tables, keys512, acc),
-                            6 => x86::bc1_row_avx512::<6>(d, cols, b0p, tables, keys512, acc),
-                            5 => x86::bc1_row_avx512::<5>(d, cols, b0p, tables, keys512, acc),
-                            4 => x86::bc1_row_avx512::<4>(d, cols, b0p, tables, keys512, acc),
-                            3 => x86::bc1_row_avx512::<3>(d, cols, b0p, tables, keys512, acc),
-                            2 => x86::bc1_row_avx512::<2>(d, cols, b0p, tables, keys512, acc),
-                            _ => x86::bc1_row_avx512::<1>(d, cols, b0p, tables, keys512, acc),
-                        }
-                    };
-                }
-                if touched == 0 {
-                    break 'dense;
-                }
-                for (br, a) in acc.iter().enumerate() {
-                    for r in 0..4 {
-                        for ch in 0..out_ch {
-                            let l = &a[ch][4 * r..4 * r + 4];
-                            rows[4 * br + r][ch] = (l[0] + l[1]) + (l[2] + l[3]);
+                            let (k, c) = (self.float_kernel, self.channels);
+                            float::column(k, f, col, c, &b, out_ch, acc);
                         }
                     }
                 }
             }
-            _ => {
-                let mut buf = vec![0.0f32; tile * tile * self.channels];
-                let ch = self.channels;
-                for &slot in &visit[..touched] {
-                    let slot = slot as usize;
-                    let tc = self.cols[slot] as usize;
-                    let w = tile.min(self.image - tc * tile);
-                    let len = self.format.tile_bytes(h, w, ch);
-                    let start = self.offsets[slot] as usize;
-                    decode_tile_bytes(&self.book, &self.dense[start..start + len], h, w, &mut buf);
-                    stats.bytes_read += len as u64;
-                    stats.entries += (h * w) as u64;
-                    let c0 = tc * tile;
-                    let cols_here = w.min(self.n.saturating_sub(c0));
-                    for (r, row) in rows.iter_mut().enumerate() {
-                        // Per row the active columns in ascending order,
-                        // as when nothing is skipped.
-                        let mut bits = active.mask[tc];
-                        while bits != 0 {
-                            let gl = bits.trailing_zeros() as usize;
-                            bits &= bits - 1;
-                            for c in 4 * gl..(4 * gl + 4).min(cols_here) {
-                                let j = c0 + c;
-                                let v = &buf[(r * w + c) * ch..(r * w + c + 1) * ch];
-                                for (oc, o) in row.iter_mut().enumerate().take(out_ch) {
-                                    *o += v[oc.min(ch - 1)] * b0[oc][j];
-                                }
-                            }
-                        }
+            #[cfg(target_arch = "x86_64")]
+            if grey_fast {
+                let (d, cols, p) = (&self.dense[..], &fast_cols[..], &self.bc4_pairs[..]);
+                // SAFETY: the pair table is built only where the CPU
+                // reports AVX-512F.
+                unsafe {
+                    if out_ch == 3 {
+                        bc4_grey_row::<3>(bh, d, cols, b0p, p, acc);
+                    } else {
+                        bc4_grey_row::<1>(bh, d, cols, b0p, p, acc);
+                    }
+                }
+            } else if fast && self.vector == "avx2" {
+                // SAFETY: `simd_kind` checked AVX2 and FMA.
+                unsafe {
+                    let tables = self.bc1.as_ref().expect("BC1 tables");
+                    x86::bc1_row_avx2(&self.dense, fast_cols, b0p, tables, keys, acc);
+                }
+            } else if fast {
+                // SAFETY: `simd` is set only when the CPU reports AVX-512F.
+                unsafe {
+                    let tables = self.bc1.as_ref().expect("BC1 tables");
+                    let (d, cols) = (&self.dense[..], &fast_cols[..]);
+                    let acc = &mut acc[..];
+                    // The common full row of tiles (8 block rows) with
+                    // its accumulators in registers; the last, shorter
+                    // one through the same code with fewer rows.
+                    match bh {
+                        8 => x86::bc1_row_avx512::<8>(d, cols, b0p, tables, keys512, acc),
+                        7 => x86::bc1_row_avx512::<7>(d, cols, b0p, tables, keys512, acc),
+                        6 => x86::bc1_row_avx512::<6>(d, cols, b0p, tables, keys512, acc),
+                        5 => x86::bc1_row_avx512::<5>(d, cols, b0p, tables, keys512, acc),
+                        4 => x86::bc1_row_avx512::<4>(d, cols, b0p, tables, keys512, acc),
+                        3 => x86::bc1_row_avx512::<3>(d, cols, b0p, tables, keys512, acc),
+                        2 => x86::bc1_row_avx512::<2>(d, cols, b0p, tables, keys512, acc),
+                        _ => x86::bc1_row_avx512::<1>(d, cols, b0p, tables, keys512, acc),
+                    }
+                };
+            }
+            if touched == 0 {
+                break 'dense;
+            }
+            for (br, a) in acc.iter().enumerate() {
+                for (r, row) in rows.iter_mut().skip(4 * br).take(4).enumerate() {
+                    for (ch, o) in row.iter_mut().enumerate().take(out_ch) {
+                        let l = &a[ch][4 * r..4 * r + 4];
+                        *o = (l[0] + l[1]) + (l[2] + l[3]);
                     }
                 }
             }
