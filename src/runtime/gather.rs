@@ -44,8 +44,9 @@
 //! tiles and a block's palette one load from a table of every endpoint
 //! pair. BC6H, f16 and f32 are re-laid by block column too and
 //! gathered in [`float`]: f16 and f32 at the memory's speed (one load,
-//! conversion and multiply-add per 16 values), BC6H block by block through
-//! `bcdec_rs`.
+//! conversion and multiply-add per 16 values), BC6H from blocks unpacked at
+//! load ([`bc6h`]: its endpoints, weights and region mask, so that a frame
+//! decodes each block in integer arithmetic that vectorises).
 
 use crate::bakefile::codec::decode::Codebook;
 use crate::bakefile::codec::rgb9e5;
@@ -53,6 +54,7 @@ use crate::bakefile::codec::scaled_input;
 use crate::bakefile::codec::{DenseFormat, Encoded, SparseValues};
 use rayon::prelude::*;
 
+mod bc6h;
 mod float;
 #[cfg(target_arch = "x86_64")]
 mod x86;

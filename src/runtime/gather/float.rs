@@ -6,22 +6,22 @@
 //! that a skipped column group skips its memory and, for BC6H, its
 //! decoding: an f16 or f32 block is its stored channels one after the other,
 //! each 16 values row by row (a 4 × 4 block of the matrix), a BC6H block its
-//! 16 bytes. The kernels add a block column times its 4 values of `B0` into
+//! unpacked form ([`bc6h::UNPACKED_BYTES`] bytes). The kernels add a block column times its 4 values of `B0` into
 //! the row of tiles' accumulators (per block row and output channel, lane
 //! `4 r + c` for row `r`, column `c` of the block), which the caller sums
 //! per row as it does for BC1.
 //!
 //! f16 and f32 are one load (f16: one conversion, F16C on x86) and one
-//! fused multiply-add per 16 values on AVX-512, two on AVX2, so they run at
-//! the memory's speed; the portable loop is their reference in the tests.
-//! BC6H blocks are decoded one at a time by `bcdec_rs` (its 14 modes and
-//! 32 partitions are branchy, scalar work) into 48 halves, converted to f32
-//! in one slice conversion, then multiplied. The f16 and BC6H scale, a
-//! power of two, is folded into `B0` by the caller (exact).
+//! multiply and add per 16 values on AVX-512, two on AVX2, so they run at
+//! the memory's speed; the portable loop is their reference in the tests
+//! (the same operations: no fused multiply-add, so the same bits). BC6H
+//! blocks are unpacked at load and decoded per block column by [`bc6h`].
+//! The f16 and BC6H scale, a power of two, is folded into `B0` by the
+//! caller (exact).
 
+use super::bc6h;
 use crate::bakefile::codec::DenseFormat;
 use half::f16;
-use half::slice::{HalfBitsSliceExt, HalfFloatSliceExt};
 
 /// Bytes of one stored value.
 fn value_bytes(format: DenseFormat) -> usize {
@@ -34,7 +34,7 @@ fn value_bytes(format: DenseFormat) -> usize {
 /// Bytes of one re-laid block column of `bh` block rows.
 pub(super) fn column_bytes(format: DenseFormat, bh: usize, channels: usize) -> usize {
     match format {
-        DenseFormat::Bc6h => 16 * bh,
+        DenseFormat::Bc6h => bc6h::UNPACKED_BYTES * bh,
         _ => 16 * channels * value_bytes(format) * bh,
     }
 }
@@ -58,7 +58,7 @@ pub(super) fn relay_tile(
         for bc in 0..bw {
             for br in 0..bh {
                 let k = br * bw + bc;
-                out.extend_from_slice(&src[16 * k..16 * k + 16]);
+                bc6h::unpack(src[16 * k..16 * k + 16].try_into().expect("16 bytes"), out);
             }
         }
         return;
@@ -124,7 +124,17 @@ pub(super) fn column(
 ) {
     assert!(col.len() >= column_bytes(format, acc.len(), channels));
     if format == DenseFormat::Bc6h {
-        return bc6h_column(col, b, out_ch, acc);
+        // Three stored channels, so three output channels.
+        debug_assert_eq!(out_ch, 3);
+        return match kernel {
+            // SAFETY: the kernel was chosen for what this CPU reported.
+            #[cfg(target_arch = "x86_64")]
+            FloatKernel::Avx512 => unsafe { bc6h::column_avx512(col, b, acc) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            FloatKernel::Avx2 => unsafe { bc6h::column_avx2(col, b, acc) },
+            FloatKernel::Portable => bc6h::column(col, b, acc),
+        };
     }
     let half = format == DenseFormat::F16;
     match kernel {
@@ -132,7 +142,7 @@ pub(super) fn column(
         // `col` holds every block the kernel reads (asserted above).
         #[cfg(target_arch = "x86_64")]
         FloatKernel::Avx512 => unsafe { plain_column_avx512(half, col, channels, b, out_ch, acc) },
-        // SAFETY: as above (AVX2, FMA and F16C).
+        // SAFETY: as above (AVX2 and F16C).
         #[cfg(target_arch = "x86_64")]
         FloatKernel::Avx2 => unsafe { plain_column_avx2(half, col, channels, b, out_ch, acc) },
         FloatKernel::Portable => plain_column(half, col, channels, b, out_ch, acc),
@@ -169,28 +179,11 @@ fn plain_column(
     }
 }
 
-/// A BC6H block column: each block decoded to halves, converted, and
-/// multiplied per channel.
-fn bc6h_column(col: &[u8], b: &[[f32; 4]; 3], out_ch: usize, acc: &mut [[[f32; 16]; 3]]) {
-    let mut halves = [0u16; 48];
-    let mut v = [0.0f32; 48];
-    for (br, a) in acc.iter_mut().enumerate() {
-        // Texel t = 4 y + x at halves 3 t .. 3 t + 3 (a row is 12 halves).
-        bcdec_rs::bc6h_half(&col[16 * br..16 * br + 16], &mut halves, 12, false);
-        halves
-            .reinterpret_cast::<f16>()
-            .convert_to_f32_slice(&mut v);
-        for (oc, (a, b)) in a.iter_mut().zip(b).enumerate().take(out_ch) {
-            for (lane, s) in a.iter_mut().enumerate() {
-                *s += v[3 * lane + oc] * b[lane & 3];
-            }
-        }
-    }
-}
-
 /// [`plain_column`] on AVX-512: per block row and output channel one load
-/// of 16 values (f16: converted by `vcvtph2ps`) and one fused
-/// multiply-add into the accumulator.
+/// of 16 values (f16: converted by `vcvtph2ps`), a multiply and an add
+/// into the accumulator (not fused, as in the portable loop: the same
+/// bits; the extra instruction does not show, the loop being bound by
+/// memory or by the conversions).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 unsafe fn plain_column_avx512(
@@ -225,7 +218,7 @@ unsafe fn plain_column_avx512(
 
 /// [`plain_column_avx512`] in 8-lane halves (a block's rows 0–1 and 2–3).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,f16c")]
+#[target_feature(enable = "avx2,f16c")]
 unsafe fn plain_column_avx2(
     half: bool,
     col: &[u8],
