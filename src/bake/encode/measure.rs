@@ -185,13 +185,12 @@ pub fn default_candidates() -> Vec<CodecKind> {
 
 /// How much larger than the smallest passing setting a log-scaled block
 /// setting (BC1, BC4) may be and still be chosen over it ([`choose`]).
-/// Their CPU gather decodes 19–25 times more bytes per second than BC6H's
-/// and 2.3–3 times more than F16's, which also takes 5–6 times the bytes
-/// (`radiosity bench sweep`, `docs/sweep/`; the Cornell box at 1,040
-/// patches: BC6H at 1.0 B/entry gathers in 11.8 ms, BC1 at 1.23 B/entry
-/// in 0.63 ms), and a GPU decodes all of them in hardware: a little more
-/// memory
-/// buys a much faster frame where the CPU gathers.
+/// The CPU gathers BC1 faster per frame than BC6H, which stores about
+/// twice its bytes, and than f16, about ten times (`radiosity bench
+/// frame`, the Cornell box at 3,940 patches, every column: BC1 at 0.57
+/// B/entry 1.1 ms, BC6H at 1.0 B/entry 10.1 ms, f16 3.9 ms), and a GPU
+/// decodes all of them in hardware: a little more memory buys a faster
+/// frame where the CPU gathers.
 pub const BLOCK_CODEC_SLACK: f64 = 2.0;
 
 /// The setting [`choose`] takes among `candidates` (empty: the
