@@ -161,9 +161,10 @@ struct SparseRt {
     group_start: Vec<u32>,
     /// Per entry: row within the tile (high byte) and column within it.
     pos: Vec<u16>,
-    /// RGB9E5 words (precision RGB9E5) or values (`channels` per entry).
+    /// RGB9E5 words (precision RGB9E5) or values (f16 and f32: the three
+    /// channels and a zero lane, a grey part's value three times).
     packed: Vec<u32>,
-    values: Vec<f32>,
+    values: Vec<[f32; 4]>,
     /// RGB9E5: `2^(e − 24) / scale_c` per exponent and channel (and a
     /// zero lane).
     exp_factor: [[f32; 4]; 32],
@@ -402,7 +403,8 @@ impl CompressedGather {
                 let v = &sp.values[3 * k..3 * k + 3];
                 packed.push(rgb9e5::pack(std::array::from_fn(|c| v[c] * sp.scale[c])));
             } else {
-                values.extend_from_slice(&sp.values[ch * k..ch * k + ch]);
+                let v = &sp.values[ch * k..ch * k + ch];
+                values.push([v[0], v[1.min(ch - 1)], v[2.min(ch - 1)], 0.0]);
             }
         }
         for r in 1..=tps {
@@ -500,7 +502,7 @@ impl CompressedGather {
         if self.simd && (self.format == DenseFormat::Bc1 || !self.bc4_pairs.is_empty()) {
             fill_b0_groups(b0, active, tile, &mut b0p);
         }
-        if self.sparse.rgb9e5 && out_ch == 3 {
+        if out_ch == 3 && !self.sparse.pos.is_empty() {
             fill_b0_columns(b0, active, tile, &mut b0x);
         }
         let inputs = RowInputs {
@@ -744,7 +746,7 @@ impl CompressedGather {
                 // order): a group holds a few entries, and the cost per
                 // call showed (Sponza at 3,946 patches, every column: 2.69
                 // → 2.07–2.23 ms for the whole gather).
-                let run = if sp.rgb9e5 && out_ch == 3 {
+                let run = if out_ch == 3 {
                     (bits >> gl).trailing_ones() as usize
                 } else {
                     1
@@ -753,7 +755,7 @@ impl CompressedGather {
                 let (a, b) = (starts[gl] as usize, starts[gl + run] as usize);
                 stats.bytes_read += (b - a) as u64 * entry_bytes;
                 let jb = tc * tile;
-                if sp.rgb9e5 && out_ch == 3 {
+                if out_ch == 3 {
                     // The common case: listed, then run in one call below.
                     if a < b {
                         runs.push([a as u32, b as u32, jb as u32]);
@@ -772,8 +774,8 @@ impl CompressedGather {
                             ((p >> 18) & 0x1ff) as f32 * f[2],
                         ]
                     } else {
-                        let s = &sp.values[e * sp.channels..(e + 1) * sp.channels];
-                        std::array::from_fn(|c| s[c.min(sp.channels - 1)])
+                        let s = &sp.values[e];
+                        [s[0], s[1], s[2]]
                     };
                     for (oc, o) in rows[r].iter_mut().enumerate().take(out_ch) {
                         *o += v[oc] * b0[oc][j];
@@ -787,6 +789,10 @@ impl CompressedGather {
         // of the work). Without per-entry branches, the same operations in
         // the same order as the general loop.
         if !runs.is_empty() {
+            if !sp.rgb9e5 {
+                sparse_values(runs, &sp.pos, &sp.values, b0x, rows);
+                return stats;
+            }
             #[cfg(target_arch = "x86_64")]
             if sparse_avx2 {
                 // SAFETY: `sparse_avx2` is set only where the CPU has AVX2.
@@ -952,8 +958,8 @@ struct RowInputs<'a> {
     b0: [&'a [f32]; 3],
     /// [`fill_b0_groups`]'s buffer where a vector BC1 path runs, else empty.
     b0p: &'a [[[f32; 4]; 3]],
-    /// `B0` by column, channels side by side, where [`sparse_rgb9e5`]
-    /// runs, else empty.
+    /// `B0` by column, channels side by side, where [`sparse_rgb9e5`] or
+    /// [`sparse_values`] runs (three output channels), else empty.
     b0x: &'a [[f32; 4]],
     active: &'a ActiveColumns,
     /// Channels multiplied: 1 when the matrix and `B0` are both grey.
@@ -978,7 +984,7 @@ struct RowScratch {
     /// The row's stored tiles (then sparse blocks) to visit ([`compact`]).
     visit: Vec<u32>,
     /// The sparse part's common case: runs of entries (first, end, first
-    /// column of their tile) for [`sparse_rgb9e5`].
+    /// column of their tile) for [`sparse_rgb9e5`] or [`sparse_values`].
     runs: Vec<[u32; 3]>,
 }
 
@@ -1077,6 +1083,30 @@ fn sparse_rgb9e5(
             let row = &mut rows[(p >> 8) as usize];
             for c in 0..4 {
                 row[c] += m[c] * f[c] * b[c];
+            }
+        }
+    }
+}
+
+/// The sparse part's runs of f16 or f32 values (stored as f32, three
+/// channels and a zero lane): per entry one four-lane multiply and add
+/// into its row, the general loop's operations in its order (so the same
+/// bits), which the compiler vectorises on every x86-64 (SSE2).
+fn sparse_values(
+    runs: &[[u32; 3]],
+    pos: &[u16],
+    values: &[[f32; 4]],
+    b0x: &[[f32; 4]],
+    rows: &mut [[f32; 4]],
+) {
+    for &[a, b, jb] in runs {
+        let (a, b) = (a as usize, b as usize);
+        let b0x = &b0x[jb as usize..];
+        for (&p, v) in pos[a..b].iter().zip(&values[a..b]) {
+            let b = &b0x[(p & 0xff) as usize];
+            let row = &mut rows[(p >> 8) as usize];
+            for c in 0..4 {
+                row[c] += v[c] * b[c];
             }
         }
     }
