@@ -4,8 +4,9 @@
 //! millimetre and kilometre scales far from the origin, a random soup), a
 //! segment is blocked for one exactly when it is for the other and the
 //! nearest hit lies at the same distance, on the AVX and the portable box
-//! test alike; and the four-box test agrees with the binary slab test, NaN
-//! cases included.
+//! test alike, for single segments and for packets of eight (AVX-512);
+//! and the four-box test agrees with the binary slab test, NaN cases
+//! included.
 
 use radiosity::core::bvh::{intersect, slab, Bvh, Node};
 use radiosity::core::bvh4::{test4_portable, Bvh4, Node4};
@@ -202,6 +203,52 @@ fn check(name: &str, scene: &Soup, segs: &[([f64; 3], [f64; 3])]) -> usize {
                 same,
                 "{name}: segment {i}: nearest hit {got:?} through the {path} four-wide BVH, {near:?} through the binary one"
             );
+        }
+    }
+    // Packets: eight consecutive segments (unrelated: each lane's own
+    // answer must survive the others' traversal), under masks that leave
+    // some lanes out, and eight segments from nearby origins to one end
+    // (coherent, as a patch's shadow rays to one light).
+    let mut coherent = Vec::new();
+    for (i, &(o, d)) in segs.iter().enumerate().step_by(8) {
+        let end: [f64; 3] = std::array::from_fn(|k| o[k] + d[k]);
+        for (j, &(p, _)) in segs[i..(i + 8).min(segs.len())].iter().enumerate() {
+            // Origins within a hundredth of the segment's length of `o`.
+            let q: [f64; 3] =
+                std::array::from_fn(|k| o[k] + 0.01 * (p[k] - o[k]) * (j as f64 / 8.0));
+            coherent.push((q, std::array::from_fn(|k| end[k] - q[k])));
+        }
+    }
+    for (kind, list) in [("unrelated", segs), ("coherent", &coherent[..])] {
+        for (g, group) in list.chunks(8).enumerate() {
+            let o: [[f64; 3]; 8] = std::array::from_fn(|k| group.get(k).map_or([0.0; 3], |s| s.0));
+            let d: [[f64; 3]; 8] = std::array::from_fn(|k| group.get(k).map_or([0.0; 3], |s| s.1));
+            let full = ((1u16 << group.len()) - 1) as u8;
+            let mask = if g % 3 == 0 { full & 0b1011_0110 } else { full };
+            for (path, b4) in [("vector", &wide), ("portable", &portable)] {
+                let hits = b4.any_hit_packet(&bvh, &o, &d, mask);
+                for k in 0..8 {
+                    if mask >> k & 1 == 0 {
+                        assert!(
+                            hits[k].is_none(),
+                            "{name}: a lane outside the mask answered"
+                        );
+                        continue;
+                    }
+                    let reference = bvh.any_hit(o[k], d[k], |_, _| false).is_some();
+                    assert_eq!(
+                        hits[k].is_some(),
+                        reference,
+                        "{name}: {kind} packet {g}, lane {k} from {:?} along {:?}: the {path} packet says blocked = {}, the binary traversal {reference}",
+                        o[k],
+                        d[k],
+                        hits[k].is_some()
+                    );
+                    if let Some((leaf, t)) = hits[k] {
+                        assert!(bvh.hits_in_leaf(leaf, t, o[k], d[k]));
+                    }
+                }
+            }
         }
     }
     // Neither all blocked nor all clear, or the comparison proves little.

@@ -6,8 +6,8 @@ mod common;
 use common::{quad, write_quads};
 use radiosity::bake::voxelize::voxelize_at;
 use radiosity::core::compute::Backend;
-use radiosity::core::direct::{exitance, random_lights, DirectLight};
-use radiosity::core::light::incident;
+use radiosity::core::direct::{exitance, random_lights, DirectLight, ShadowCache};
+use radiosity::core::light::{incident, Prepared};
 use radiosity::core::scene;
 use radiosity::core::scene_config::Light;
 
@@ -143,17 +143,19 @@ fn random_lights_are_seeded_and_valid() {
     }
 }
 
-/// The direct pass's per-patch points, with each light's last blocker tried
-/// first (`DirectLight::at_points_each`, and `at_points` through it), give
-/// the same bits as the plain definition: per light, its incident
+/// The direct pass's per-patch points, their shadow rays in packets of
+/// eight (`DirectLight::at_points_each`, and `at_points` through it), and
+/// the renderer's points one at a time with each light's last blocker tried
+/// first (`at_point_cached`), give the same bits as the plain definition: per light, its incident
 /// irradiance where a full BVH traversal (`visible`) finds no blocker. On a
 /// floor under a roof, lit by random spot and directional lights, points
 /// spread over the whole floor.
 #[test]
-fn cached_blockers_change_no_bit_of_the_direct_light() {
+fn packets_and_cached_blockers_change_no_bit_of_the_direct_light() {
     let (s, _) = floor(true);
     let dl = DirectLight::new(&s);
     let lights = random_lights(s.bounds(), 8, 5);
+    let prepared = Prepared::all(&lights);
     let mut blocked = 0;
     let mut plain = |p: ([f64; 3], [f64; 3])| -> [f64; 3] {
         let (x, n) = p;
@@ -179,9 +181,14 @@ fn cached_blockers_change_no_bit_of_the_direct_light() {
             .map(|i| ([-0.5 + (i as f64 + 0.5) / 24.0, 0.0, z], [0.0, 1.0, 0.0]))
             .collect();
         let each = dl.at_points_each(&points, &lights);
+        // The renderer's path: one point at a time, each light's last
+        // blocker along the row tried first.
+        let mut cache = ShadowCache::new(lights.len());
         for (p, e) in points.iter().zip(&each) {
             let want = plain(*p).map(f64::to_bits);
             assert_eq!(want, e.map(f64::to_bits), "at {:?}", p.0);
+            let cached = dl.at_point_cached(p.0, p.1, &prepared, &mut cache);
+            assert_eq!(want, cached.map(f64::to_bits), "at {:?}, cached", p.0);
             let alone = dl.at_points(std::slice::from_ref(p), &lights);
             assert_eq!(want, alone.map(f64::to_bits), "at {:?} alone", p.0);
         }

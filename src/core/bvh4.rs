@@ -38,6 +38,13 @@
 //!
 //! The box test runs on AVX (four f64 lanes) where the CPU has it, else in
 //! the portable [`test4_portable`], which performs the same comparisons.
+//!
+//! **Packets.** [`Bvh4::any_hit_packet`] traverses up to eight shadow rays
+//! together on AVX-512 (a patch's sample points towards one light), one
+//! lane a ray through the same operations, with the same answers per ray.
+//! Direct light on patches: 0–15 % faster than a ray at a time (the
+//! interior at 3,499 patches 5.99 → 5.07 ms in `bench frame`; Sponza's sun
+//! no faster: its parallel rays part ways under the arcades).
 
 use crate::core::bvh::{intersect, slab, Bvh, STACK};
 
@@ -300,6 +307,152 @@ impl Bvh4 {
             }
         }
         best
+    }
+}
+
+/// Rays in one [`Bvh4::any_hit_packet`] query.
+pub const PACKET: usize = 8;
+
+impl Bvh4 {
+    /// [`Bvh4::any_hit_leaf`] of up to [`PACKET`] segments `o[k] + t d[k]`,
+    /// `t ∈ [0, 1]`, for the `k` set in `mask`, traversed together: on
+    /// AVX-512 each child box is tested against the eight segments at once
+    /// (one lane a segment, the same operations as the four-box test, so a
+    /// box passes for a segment exactly when it does there), a node is
+    /// visited while some unblocked segment passes it, and a leaf's
+    /// triangles are tested for each such segment as in
+    /// [`Bvh4::any_hit_leaf`] (the hit counting only where the leaf's own box
+    /// passes the binary test). So each segment is blocked exactly when
+    /// [`Bvh4::any_hit_leaf`] says it is; the blocker named may differ.
+    /// Shadow rays from a patch's sample points to one light share most of
+    /// their nodes. Elsewhere (no AVX-512, or [`Bvh4::portable`]): one
+    /// [`Bvh4::any_hit_leaf`] per segment.
+    pub fn any_hit_packet(
+        &self,
+        bvh: &Bvh,
+        o: &[[f64; 3]; PACKET],
+        d: &[[f64; 3]; PACKET],
+        mask: u8,
+    ) -> [Option<(u32, u32)>; PACKET] {
+        let mut out = [None; PACKET];
+        if self.nodes.is_empty() || mask == 0 {
+            return out;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx && is_x86_feature_detected!("avx512f") {
+            // SAFETY: AVX-512F was detected just above.
+            unsafe { self.packet_avx512(bvh, o, d, mask, &mut out) };
+            return out;
+        }
+        for k in 0..PACKET {
+            if mask >> k & 1 != 0 {
+                out[k] = self.any_hit_leaf(bvh, o[k], d[k]);
+            }
+        }
+        out
+    }
+
+    /// [`Bvh4::any_hit_packet`] on AVX-512.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn packet_avx512(
+        &self,
+        bvh: &Bvh,
+        o: &[[f64; 3]; PACKET],
+        d: &[[f64; 3]; PACKET],
+        mask: u8,
+        out: &mut [Option<(u32, u32)>; PACKET],
+    ) {
+        use std::arch::x86_64::*;
+        let inv: [[f64; 3]; PACKET] = std::array::from_fn(|k| d[k].map(|x| 1.0 / x));
+        let lanes = |f: &dyn Fn(usize) -> f64| -> __m512d {
+            let v: [f64; PACKET] = std::array::from_fn(f);
+            // SAFETY: eight f64, unaligned load.
+            unsafe { _mm512_loadu_pd(v.as_ptr()) }
+        };
+        let ov: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| o[k][a]));
+        let iv: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| inv[k][a]));
+        let (zero, one) = (_mm512_setzero_pd(), _mm512_set1_pd(1.0));
+        let mut active = mask;
+        let mut stack = [(0u32, 0u8); STACK4];
+        let mut sp = 0usize;
+        let (mut node, mut rays) = (0u32, mask);
+        loop {
+            let n = &self.nodes[node as usize];
+            // The four children's tests first, without branches, so that
+            // their dependency chains overlap (a child at a time, each
+            // test waited for before the next: the interior's direct light
+            // at 3,499 patches 4.58–4.64 ms, against 4.43–4.48 so and
+            // 4.93–4.98 a ray at a time).
+            let mut passes = [0u8; 4];
+            for (c, p) in passes.iter_mut().enumerate() {
+                let (mut t0, mut t1) = (zero, one);
+                for a in 0..3 {
+                    let lo = _mm512_set1_pd(n.lo[a][c] as f64);
+                    let hi = _mm512_set1_pd(n.hi[a][c] as f64);
+                    let x = _mm512_mul_pd(_mm512_sub_pd(lo, ov[a]), iv[a]);
+                    let y = _mm512_mul_pd(_mm512_sub_pd(hi, ov[a]), iv[a]);
+                    // As test4_avx: min(x, y), max(x, y), then the NaN
+                    // operand first against t0, t1.
+                    t0 = _mm512_max_pd(_mm512_min_pd(x, y), t0);
+                    t1 = _mm512_min_pd(_mm512_max_pd(x, y), t1);
+                }
+                *p = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(t0, t1);
+            }
+            let mut next = None;
+            let mut valid = n.valid;
+            while valid != 0 {
+                let c = valid.trailing_zeros() as usize;
+                valid &= valid - 1;
+                let pass = passes[c] & rays & active;
+                if pass == 0 {
+                    continue;
+                }
+                let child = n.child[c];
+                if child & LEAF != 0 {
+                    let leaf = child & !LEAF;
+                    let ln = &bvh.nodes[leaf as usize];
+                    let mut left = pass;
+                    while left != 0 {
+                        let k = left.trailing_zeros() as usize;
+                        left &= left - 1;
+                        for t in ln.left..ln.left + ln.count {
+                            if intersect(&bvh.tris[t as usize], o[k], d[k]).is_some()
+                                && slab(ln, o[k], inv[k]).is_some()
+                            {
+                                out[k] = Some((leaf, t));
+                                active &= !(1 << k);
+                                break;
+                            }
+                        }
+                    }
+                    if active == 0 {
+                        return;
+                    }
+                } else if next.is_none() {
+                    next = Some((child, pass));
+                } else {
+                    assert!(sp < STACK4, "BVH4 packet traversal stack overflow");
+                    stack[sp] = (child, pass);
+                    sp += 1;
+                }
+            }
+            // The next node some unblocked segment still passes.
+            loop {
+                let (c, r) = match next.take() {
+                    Some(x) => x,
+                    None if sp > 0 => {
+                        sp -= 1;
+                        stack[sp]
+                    }
+                    None => return,
+                };
+                if r & active != 0 {
+                    (node, rays) = (c, r & active);
+                    break;
+                }
+            }
+        }
     }
 }
 

@@ -7,7 +7,7 @@
 //! compression report measures `H = T̃ · B0` over.
 
 use crate::core::bvh::Bvh;
-use crate::core::bvh4::Bvh4;
+use crate::core::bvh4::{Bvh4, PACKET};
 use crate::core::light::{incident_prepared, Prepared};
 use crate::core::math::{add, dot, f64s, normalize, scale, sub, SplitMix64};
 use crate::core::patch::Patch;
@@ -78,13 +78,11 @@ impl DirectLight {
         points: &[([f64; 3], [f64; 3])],
         lights: &[Prepared],
     ) -> [f64; 3] {
-        // Per point (sharing blockers), then summed in order: with one
-        // light or one point, the same sum term by term as one running
-        // total over every (point, light).
-        let mut cache = ShadowCache::new(lights.len());
+        // Per point (in packets), then summed in order: with one light or
+        // one point, the same sum term by term as one running total over
+        // every (point, light).
         let mut d = [0.0; 3];
-        for &(x, n) in points {
-            let e = self.at_point_cached(x, n, lights, &mut cache);
+        for e in self.at_prepared_points_each(points, lights) {
             for (dc, e) in d.iter_mut().zip(e) {
                 *dc += e;
             }
@@ -93,8 +91,9 @@ impl DirectLight {
     }
 
     /// The irradiance at each of `points` (position, unit normal) from
-    /// `lights` ([`DirectLight::at_point_cached`]), with one [`ShadowCache`] across the points:
-    /// meant for points close together (a patch's sample points).
+    /// `lights`, [`DirectLight::at_point_cached`]'s values, their shadow
+    /// rays traversing the BVH in packets: meant for points close together
+    /// (a patch's sample points), whose rays to a light share their nodes.
     pub fn at_points_each(
         &self,
         points: &[([f64; 3], [f64; 3])],
@@ -104,17 +103,47 @@ impl DirectLight {
     }
 
     /// [`DirectLight::at_points_each`] of lights prepared once (per frame,
-    /// not per patch).
+    /// not per patch): per light, the shadow rays of up to [`PACKET`]
+    /// points traverse the BVH together ([`Bvh4::any_hit_packet`], the
+    /// same blocked-or-not answers), and each point sums its unblocked
+    /// lights in light order, so every value is [`DirectLight::at_point_cached`]'s
+    /// to the bit.
     pub fn at_prepared_points_each(
         &self,
         points: &[([f64; 3], [f64; 3])],
         lights: &[Prepared],
     ) -> Vec<[f64; 3]> {
-        let mut cache = ShadowCache::new(lights.len());
-        points
-            .iter()
-            .map(|&(x, n)| self.at_point_cached(x, n, lights, &mut cache))
-            .collect()
+        let mut out = Vec::with_capacity(points.len());
+        for chunk in points.chunks(PACKET) {
+            let x: [[f64; 3]; PACKET] = std::array::from_fn(|k| {
+                chunk
+                    .get(k)
+                    .map_or([0.0; 3], |&(x, n)| add(x, scale(n, self.offset)))
+            });
+            let mut d = [[0.0f64; 3]; PACKET];
+            for light in lights {
+                let mut dir = [[0.0f64; 3]; PACKET];
+                let mut e = [[0.0f64; 3]; PACKET];
+                let mut mask = 0u8;
+                for (k, &(_, n)) in chunk.iter().enumerate() {
+                    if let Some(inc) = incident_prepared(light, x[k], n, self.far) {
+                        dir[k] = sub(inc.shadow_end, x[k]);
+                        e[k] = inc.irradiance;
+                        mask |= 1 << k;
+                    }
+                }
+                let hits = self.bvh4.any_hit_packet(&self.bvh, &x, &dir, mask);
+                for k in 0..chunk.len() {
+                    if mask >> k & 1 != 0 && hits[k].is_none() {
+                        for (dc, ec) in d[k].iter_mut().zip(e[k]) {
+                            *dc += ec;
+                        }
+                    }
+                }
+            }
+            out.extend_from_slice(&d[..chunk.len()]);
+        }
+        out
     }
 
     /// The irradiance at the point `x` with unit normal `n` from `lights`
