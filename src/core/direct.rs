@@ -113,8 +113,22 @@ impl DirectLight {
         points: &[([f64; 3], [f64; 3])],
         lights: &[Prepared],
     ) -> Vec<[f64; 3]> {
-        let mut out = Vec::with_capacity(points.len());
-        for chunk in points.chunks(PACKET) {
+        let mut out = vec![[0.0; 3]; points.len()];
+        self.at_prepared_points_into(points, lights, &mut out);
+        out
+    }
+
+    /// [`DirectLight::at_prepared_points_each`] written into `out` (one
+    /// value per point), without allocating: the direct pass calls it per
+    /// patch.
+    pub fn at_prepared_points_into(
+        &self,
+        points: &[([f64; 3], [f64; 3])],
+        lights: &[Prepared],
+        out: &mut [[f64; 3]],
+    ) {
+        assert_eq!(out.len(), points.len(), "one output per point");
+        for (chunk, out) in points.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
             let x: [[f64; 3]; PACKET] = std::array::from_fn(|k| {
                 chunk
                     .get(k)
@@ -141,9 +155,8 @@ impl DirectLight {
                     }
                 }
             }
-            out.extend_from_slice(&d[..chunk.len()]);
+            out.copy_from_slice(&d[..chunk.len()]);
         }
-        out
     }
 
     /// The irradiance at the point `x` with unit normal `n` from `lights`

@@ -42,35 +42,35 @@ pub fn irradiance(
     let s = samples.clamp(1, SAMPLES_PER_PATCH);
     let n = baked.patches.len();
     let lights = Prepared::all(lights);
-    let per: Vec<(Vec<[f64; 3]>, [f64; 3])> = (0..n)
-        .into_par_iter()
-        .map(|j| {
-            let at: Vec<([f64; 3], [f64; 3])> = (0..s)
-                .map(|k| {
-                    let i = j * SAMPLES_PER_PATCH + k;
-                    (
-                        baked.samples.position[i].map(f64::from),
-                        baked.samples.normal[i].map(f64::from),
-                    )
-                })
-                .collect();
-            // The patch's points share their occluders (DirectLight::at_points_each).
-            let points = dl.at_prepared_points_each(&at, &lights);
-            let mut mean = [0.0f64; 3];
-            for p in &points {
+    // Per patch its points' values and their mean, written in place (no
+    // allocation per patch: they showed in `perf` of the direct pass).
+    let mut at = vec![[0.0f64; 3]; n * s];
+    let mut mean = vec![[0.0f64; 3]; n];
+    at.par_chunks_mut(s)
+        .zip(mean.par_iter_mut())
+        .enumerate()
+        .for_each(|(j, (values, m))| {
+            let mut points = [([0.0f64; 3], [0.0f64; 3]); SAMPLES_PER_PATCH];
+            for (k, p) in points.iter_mut().enumerate().take(s) {
+                let i = j * SAMPLES_PER_PATCH + k;
+                *p = (
+                    baked.samples.position[i].map(f64::from),
+                    baked.samples.normal[i].map(f64::from),
+                );
+            }
+            // The patch's points share their occluders
+            // (DirectLight::at_prepared_points_into).
+            dl.at_prepared_points_into(&points[..s], &lights, values);
+            let mut sum = [0.0f64; 3];
+            for p in values.iter() {
                 for c in 0..3 {
-                    mean[c] += p[c];
+                    sum[c] += p[c];
                 }
             }
-            (points, mean.map(|v| v / s as f64))
-        })
-        .collect();
-    let at_points = std::array::from_fn(|c| {
-        per.iter()
-            .flat_map(|(p, _)| p.iter().map(move |v| v[c] as f32))
-            .collect()
-    });
-    let d = std::array::from_fn(|c| per.iter().map(|(_, m)| m[c] as f32).collect());
+            *m = sum.map(|v| v / s as f64);
+        });
+    let at_points = std::array::from_fn(|c| at.iter().map(|v| v[c] as f32).collect());
+    let d = std::array::from_fn(|c| mean.iter().map(|m| m[c] as f32).collect());
     (at_points, d)
 }
 
