@@ -73,6 +73,8 @@ pub struct Bvh4 {
     pub nodes: Vec<Node4>,
     /// Whether the box test runs on AVX.
     avx: bool,
+    /// Whether packets run on AVX-512 ([`Bvh4::any_hit_packet`]).
+    avx512: bool,
 }
 
 /// Traversal stack of [`Bvh4::any_hit_leaf`]: a node pushes at most three
@@ -83,9 +85,11 @@ const STACK4: usize = 3 * STACK + 4;
 impl Bvh4 {
     /// Collapses `bvh` (module doc).
     pub fn build(bvh: &Bvh) -> Bvh4 {
+        let (avx, avx512) = vector_units();
         let mut out = Bvh4 {
             nodes: Vec::new(),
-            avx: avx(),
+            avx,
+            avx512,
         };
         if bvh.tris.is_empty() {
             return out;
@@ -148,6 +152,7 @@ impl Bvh4 {
     /// has AVX (for comparing the two).
     pub fn portable(mut self) -> Bvh4 {
         self.avx = false;
+        self.avx512 = false;
         self
     }
 
@@ -339,8 +344,8 @@ impl Bvh4 {
             return out;
         }
         #[cfg(target_arch = "x86_64")]
-        if self.avx && is_x86_feature_detected!("avx512f") {
-            // SAFETY: AVX-512F was detected just above.
+        if self.avx512 {
+            // SAFETY: `avx512` is set only where the CPU reports AVX-512F.
             unsafe { self.packet_avx512(bvh, o, d, mask, &mut out) };
             return out;
         }
@@ -465,15 +470,18 @@ fn empty() -> Node4 {
     }
 }
 
-/// Whether this CPU runs the AVX box test.
-fn avx() -> bool {
+/// Whether this CPU runs the AVX box test, and packets on AVX-512.
+fn vector_units() -> (bool, bool) {
     #[cfg(target_arch = "x86_64")]
     {
-        is_x86_feature_detected!("avx")
+        (
+            is_x86_feature_detected!("avx"),
+            is_x86_feature_detected!("avx512f"),
+        )
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        false
+        (false, false)
     }
 }
 
