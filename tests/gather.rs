@@ -235,35 +235,42 @@ fn the_vectorised_gather_matches_the_portable_one_across_segments_and_a_short_la
             .collect()
     });
     let portable = CompressedGather::new(&e, false);
-    let simd = CompressedGather::new(&e, true);
-    assert!(
-        simd.simd(),
-        "this CPU runs no vectorised path: the test cannot check it"
-    );
-    for b in [refs(&full), refs(&b0)] {
-        let all = ActiveColumns::of(b, tile, true);
-        let some = ActiveColumns::of(b, tile, false);
-        let mut hp: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
-        let mut hs = hp.clone();
-        let mut hk = hp.clone();
-        portable.gather(b, &all, &mut hp);
-        simd.gather(b, &all, &mut hs);
-        simd.gather(b, &some, &mut hk);
-        let tol = bound(n, false);
-        for c in 0..3 {
-            for i in 0..n {
-                let rel = (hs[c][i] as f64 - hp[c][i] as f64).abs() / (hp[c][i] as f64).max(1e-30);
-                assert!(
-                    rel <= tol,
-                    "H[{c}][{i}]: {} vectorised, {} portable",
-                    hs[c][i],
-                    hp[c][i]
-                );
-                assert_eq!(
-                    hs[c][i].to_bits(),
-                    hk[c][i].to_bits(),
-                    "skipping changed H[{c}][{i}]"
-                );
+    // The CPU's widest kernels, and the AVX2 ones too on an AVX-512 host.
+    for simd in [
+        CompressedGather::new(&e, true),
+        CompressedGather::new(&e, true).on_avx2(),
+    ] {
+        assert!(
+            simd.simd(),
+            "this CPU runs no vectorised path: the test cannot check it"
+        );
+        let kind = simd.vector_kind();
+        for b in [refs(&full), refs(&b0)] {
+            let all = ActiveColumns::of(b, tile, true);
+            let some = ActiveColumns::of(b, tile, false);
+            let mut hp: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+            let mut hs = hp.clone();
+            let mut hk = hp.clone();
+            portable.gather(b, &all, &mut hp);
+            simd.gather(b, &all, &mut hs);
+            simd.gather(b, &some, &mut hk);
+            let tol = bound(n, false);
+            for c in 0..3 {
+                for i in 0..n {
+                    let rel =
+                        (hs[c][i] as f64 - hp[c][i] as f64).abs() / (hp[c][i] as f64).max(1e-30);
+                    assert!(
+                        rel <= tol,
+                        "H[{c}][{i}]: {} vectorised ({kind}), {} portable",
+                        hs[c][i],
+                        hp[c][i]
+                    );
+                    assert_eq!(
+                        hs[c][i].to_bits(),
+                        hk[c][i].to_bits(),
+                        "skipping changed H[{c}][{i}] ({kind})"
+                    );
+                }
             }
         }
     }

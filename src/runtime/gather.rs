@@ -455,6 +455,24 @@ impl CompressedGather {
         }
     }
 
+    /// The same gather on the AVX2 kernels where the CPU has AVX2 and FMA
+    /// (unchanged elsewhere): an AVX-512 host then tests them too.
+    pub fn on_avx2(mut self) -> CompressedGather {
+        if self.simd && simd_kind() != "none" {
+            self.vector = "avx2";
+            self.float_kernel = float::FloatKernel::for_cpu("avx2");
+            // The grey AVX-512 kernel's table: its absence selects the
+            // compiled-for-AVX2 grey path, as on an AVX2 host.
+            self.bc4_pairs = Vec::new();
+        }
+        self
+    }
+
+    /// The vector kernels this gather runs: "avx512", "avx2" or "none".
+    pub fn vector_kind(&self) -> &'static str {
+        self.vector
+    }
+
     /// Whether the vectorised path runs.
     pub fn simd(&self) -> bool {
         self.simd

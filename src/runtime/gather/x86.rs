@@ -339,21 +339,28 @@ pub(super) unsafe fn bc1_row_avx2(
             let row = kp.add(4 * k * stride);
             for (ci, &g) in groups[..seg.len()].iter().enumerate() {
                 let key = row.add(4 * ci);
-                let b = b0p.get_unchecked(g).as_ptr() as *const __m128;
-                let (br, bg, bb) = (
-                    _mm256_broadcast_ps(&*b),
-                    _mm256_broadcast_ps(&*b.add(1)),
-                    _mm256_broadcast_ps(&*b.add(2)),
-                );
+                // Unaligned loads, each broadcast to both halves: the
+                // buffers are only f32-aligned (a reference to an __m128
+                // there would claim 16 bytes).
+                // (A macro, not a closure: intrinsics in a closure may not
+                // be inlined into this AVX2 function.)
+                macro_rules! both {
+                    ($p:expr) => {{
+                        let x = _mm_loadu_ps($p);
+                        _mm256_set_m128(x, x)
+                    }};
+                }
+                let b = b0p.get_unchecked(g).as_ptr() as *const f32;
+                let (br, bg, bb) = (both!(b), both!(b.add(4)), both!(b.add(8)));
                 let idx = _mm256_set1_epi32(*key.add(3) as i32);
                 // vpermilps picks within each 128-bit half by the low two
                 // bits of each lane, so the shifted indices need no mask
                 // and the palette (in both halves) costs one cheap shuffle.
                 let ilo = _mm256_srlv_epi32(idx, shifts_lo);
                 let ihi = _mm256_srlv_epi32(idx, shifts_hi);
-                let pr = _mm256_broadcast_ps(&*(t0.add(*key as usize) as *const __m128));
-                let pg = _mm256_broadcast_ps(&*(t1.add(*key.add(1) as usize) as *const __m128));
-                let pb = _mm256_broadcast_ps(&*(t2.add(*key.add(2) as usize) as *const __m128));
+                let pr = both!(t0.add(*key as usize) as *const f32);
+                let pg = both!(t1.add(*key.add(1) as usize) as *const f32);
+                let pb = both!(t2.add(*key.add(2) as usize) as *const f32);
                 lr = _mm256_fmadd_ps(_mm256_permutevar_ps(pr, ilo), br, lr);
                 hr = _mm256_fmadd_ps(_mm256_permutevar_ps(pr, ihi), br, hr);
                 lg = _mm256_fmadd_ps(_mm256_permutevar_ps(pg, ilo), bg, lg);
