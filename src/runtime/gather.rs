@@ -49,7 +49,6 @@
 //! decodes each block in integer arithmetic that vectorises).
 
 use crate::bakefile::codec::decode::Codebook;
-use crate::bakefile::codec::scaled_input;
 use crate::bakefile::codec::{DenseFormat, Encoded};
 use rayon::prelude::*;
 use sparse::{fill_b0_columns, sparse_avx2_available, SparseRt};
@@ -393,12 +392,20 @@ impl CompressedGather {
         let n = self.n;
         // Column scales: the stored matrix multiplies s ∘ B0 (zero where
         // B0 is, so the active groups are the same).
-        let scaled = (!self.col_scale.is_empty()).then(|| scaled_input(b0, &self.col_scale));
-        let b0 = match &scaled {
-            Some(v) => [&v[0][..], &v[1][..], &v[2][..]],
-            None => b0,
+        // Into a buffer kept by the calling thread (as the `B0` buffers
+        // below), each channel one f32 product per value as
+        // [`crate::bakefile::codec::scaled_input`] computes it.
+        let mut scaled = SCALED.take();
+        let b0 = if self.col_scale.is_empty() {
+            b0
+        } else {
+            for (out, b) in scaled.iter_mut().zip(b0) {
+                out.clear();
+                out.extend(b.iter().zip(&self.col_scale).map(|(x, s)| x * s));
+            }
+            [&scaled[0][..], &scaled[1][..], &scaled[2][..]]
         };
-        let grey_b0 = b0[0] == b0[1] && b0[1] == b0[2];
+        let grey_b0 = same_values(b0[0], b0[1]) && same_values(b0[1], b0[2]);
         // Channels of B0 to multiply: one when both the matrix and B0 are grey.
         let out_ch = if self.channels == 1 && grey_b0 { 1 } else { 3 };
         let tile = self.tile;
@@ -455,6 +462,7 @@ impl CompressedGather {
                 h[c][i] = v[c.min(out_ch - 1)];
             }
         }
+        SCALED.set(scaled);
         stats
     }
 
@@ -515,6 +523,11 @@ impl CompressedGather {
                     && self.format == DenseFormat::Bc1
                     && (self.vector == "avx2" || bh <= 8));
             fast_cols.clear();
+            // Nothing active in this row of tiles: its rows of H stay 0
+            // (before the sparse part) and no kernel is entered.
+            if touched == 0 {
+                break 'dense;
+            }
             if fast {
                 // Only the list: counted by its length afterwards.
                 for &slot in &visit[..touched] {
@@ -616,9 +629,6 @@ impl CompressedGather {
                         _ => x86::bc1_row_avx512::<1>(d, cols, b0p, tables, keys512, acc),
                     }
                 };
-            }
-            if touched == 0 {
-                break 'dense;
             }
             for (br, a) in acc.iter().enumerate() {
                 for (r, row) in rows.iter_mut().skip(4 * br).take(4).enumerate() {
@@ -891,6 +901,20 @@ thread_local! {
     static SCRATCH: std::cell::RefCell<RowScratch> = std::cell::RefCell::new(RowScratch::default());
     /// The calling thread's `B0` buffers ([`CompressedGather::gather`]).
     static INPUTS: std::cell::Cell<B0Buffers> = std::cell::Cell::default();
+    /// The calling thread's column-scaled `B0` ([`CompressedGather::gather`]).
+    static SCALED: std::cell::Cell<[Vec<f32>; 3]> = std::cell::Cell::default();
+}
+
+/// `a == b` value by value (as `[f32] == [f32]`: 0 equals −0, NaN nothing),
+/// by chunks whose comparisons vectorise, stopping at the first chunk that
+/// differs (a coloured `B0` differs early, a grey one is read once).
+fn same_values(a: &[f32], b: &[f32]) -> bool {
+    if a.len() != b.len() {
+        return false;
+    }
+    let (ca, cb) = (a.chunks(64), b.chunks(64));
+    ca.zip(cb)
+        .all(|(x, y)| x.iter().zip(y).fold(true, |e, (p, q)| e & (p == q)))
 }
 
 /// Whether this CPU runs a vectorised BC1 path (AVX-512, or AVX2 with
@@ -983,4 +1007,34 @@ pub fn dense_product(t: [&[f32]; 3], n: usize, b0: [&[f32]; 3]) -> [Vec<f64>; 3]
             })
             .collect()
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::same_values;
+
+    /// The chunked comparison answers as `[f32] == [f32]` does: a
+    /// difference in any chunk (the last, partial one too), 0 against −0,
+    /// NaN against itself, unequal lengths.
+    #[test]
+    fn same_values_is_slice_equality() {
+        for n in [0usize, 1, 63, 64, 65, 200] {
+            let a: Vec<f32> = (0..n).map(|i| i as f32 * 0.5).collect();
+            assert!(same_values(&a, &a.clone()));
+            for k in [0, n / 2, n.saturating_sub(1)]
+                .into_iter()
+                .filter(|&k| k < n)
+            {
+                let mut b = a.clone();
+                b[k] += 1.0;
+                assert_eq!(same_values(&a, &b), a[..] == b[..], "n {n} k {k}");
+                b[k] = if a[k] == 0.0 { -0.0 } else { f32::NAN };
+                assert_eq!(same_values(&a, &b), a[..] == b[..], "n {n} k {k}");
+                let mut c = a.clone();
+                c[k] = f32::NAN;
+                assert!(!same_values(&c, &c.clone()));
+            }
+            assert!(!same_values(&a, &a[..n.saturating_sub(1)]) || n == 0);
+        }
+    }
 }
