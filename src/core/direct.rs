@@ -8,12 +8,15 @@
 
 use crate::core::bvh::Bvh;
 use crate::core::bvh4::{Bvh4, PACKET};
-use crate::core::light::{incident_prepared, Prepared};
+use crate::core::light::{incident_packet, incident_prepared, Prepared, LANES};
 use crate::core::math::{add, dot, f64s, normalize, scale, sub, SplitMix64};
 use crate::core::patch::Patch;
 use crate::core::scene::Scene;
 use crate::core::scene_config::Light;
 use rayon::prelude::*;
+
+// The light's lanes are the shadow rays' packet.
+const _: () = assert!(PACKET == LANES);
 
 /// Direct light on patches, with a BVH over the scene's triangles.
 pub struct DirectLight {
@@ -134,19 +137,14 @@ impl DirectLight {
                     .get(k)
                     .map_or([0.0; 3], |&(x, n)| add(x, scale(n, self.offset)))
             });
+            let n: [[f64; 3]; PACKET] =
+                std::array::from_fn(|k| chunk.get(k).map_or([0.0; 3], |&(_, n)| n));
             let mut d = [[0.0f64; 3]; PACKET];
             for light in lights {
-                let mut dir = [[0.0f64; 3]; PACKET];
-                let mut e = [[0.0f64; 3]; PACKET];
-                let mut mask = 0u8;
-                for (k, &(_, n)) in chunk.iter().enumerate() {
-                    if let Some(inc) = incident_prepared(light, x[k], n, self.far) {
-                        dir[k] = sub(inc.shadow_end, x[k]);
-                        e[k] = inc.irradiance;
-                        mask |= 1 << k;
-                    }
-                }
-                let hits = self.bvh4.any_hit_packet(&self.bvh, &x, &dir, mask);
+                let live = ((1u16 << chunk.len()) - 1) as u8;
+                let inc = incident_packet(light, &x, &n, self.far, live);
+                let (mask, e) = (inc.mask, inc.irradiance);
+                let hits = self.bvh4.any_hit_packet(&self.bvh, &x, &inc.dir, mask);
                 for k in 0..chunk.len() {
                     if mask >> k & 1 != 0 && hits[k].is_none() {
                         for (dc, ec) in d[k].iter_mut().zip(e[k]) {
