@@ -268,4 +268,60 @@ fn skipping_unlit_patches_in_the_correction_changes_no_bit() {
         }
     }
     assert!(lit_links > 100, "{lit_links} links to lit patches");
+
+    // What a frame calls: the correction from the irradiance at the lit
+    // points and the albedos, forming each `ρ d` on the fly, against the
+    // correction of `b = ρ d` formed first (`reflected_at_points`), bit for
+    // bit: with albedos of 0 (lit irradiance, zero exitance), products that
+    // underflow to 0 and to subnormals, −0 irradiance and lit patches.
+    use radiosity::bakefile::baked::BakedPatch;
+    use radiosity::core::patch::Direction;
+    let patches: Vec<BakedPatch> = (0..n)
+        .map(|j| BakedPatch {
+            centre: [0.0; 3],
+            normal: [0.0, 0.0, 1.0],
+            area: 1.0,
+            albedo: std::array::from_fn(|ch| match (j + ch) % 7 {
+                0 => 0.0,
+                1 => 1e-30,
+                _ => rng.uniform() as f32,
+            }),
+            emission: [0.0; 3],
+            direction: Direction::PosZ,
+            u: [1.0, 0.0, 0.0],
+            v: [0.0, 1.0, 0.0],
+            half: 0.5,
+        })
+        .collect();
+    let d: [Vec<f32>; 3] = std::array::from_fn(|ch| {
+        (0..n * m)
+            .map(|k| match (k / m + 3 * ch) % 10 {
+                0 => rng.uniform() as f32,
+                1 => -0.0,
+                2 => 1e-20,
+                _ => 0.0,
+            })
+            .collect()
+    });
+    let b: [Vec<f32>; 3] = std::array::from_fn(|ch| {
+        (0..n * m)
+            .map(|k| patches[k / m].albedo[ch] * d[ch][k])
+            .collect()
+    });
+    let (want, got) = (w.correction(&b), w.correction_reflected(&d, &patches));
+    for ch in 0..3 {
+        for i in 0..n {
+            assert_eq!(
+                got.c[ch][i].to_bits(),
+                want.c[ch][i].to_bits(),
+                "c {i} {ch}"
+            );
+            assert_eq!(
+                got.delta[ch][i].to_bits(),
+                want.delta[ch][i].to_bits(),
+                "δ {i} {ch}"
+            );
+        }
+    }
+    assert!(want.c[0].iter().filter(|&&v| v != 0.0).count() > 100);
 }

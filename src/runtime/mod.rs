@@ -236,8 +236,10 @@ impl Runtime {
         if self.near.is_empty() {
             return None;
         }
-        let at_points = direct::reflected_at_points(&self.baked, d_points, self.near.m);
-        Some(self.near.correction(&at_points))
+        Some(
+            self.near
+                .correction_reflected(d_points, &self.baked.patches),
+        )
     }
 
     /// `T̃ · b0`, or with a correction, `T̃ · (b0 + δ + ρ ∘ c) + c`.
