@@ -2,7 +2,8 @@
 //! balance in a closed box, lights outside a closed room, incremental
 //! updates against full products, colour bleeding in the Cornell box
 //! measured on pixels, the surface map's smoothness on a wall of two
-//! triangles, per-material emission.
+//! triangles, per-material emission, the direct pass against the core's
+//! direct light per point.
 
 // Index loops over channels and patches read several arrays at once.
 #![allow(clippy::needless_range_loop)]
@@ -116,6 +117,77 @@ fn closed_box_balances_energy_and_every_shadowed_patch_gets_indirect_light() {
         rel < 0.03,
         "Σ A H = {lhs}, Σ A ρ D / (1 − ρ) = {rhs}: {rel:.4}"
     );
+}
+
+/// The run time's direct pass (`runtime::direct::irradiance`: per patch its
+/// first `s` sample points, written per channel, and their mean in f64)
+/// gives, bit for bit, the core's direct light at those points
+/// (`DirectLight::at_prepared_points_each`) and their mean, for 1 to 16
+/// points and several lights at once, partly shadowed.
+#[test]
+fn the_direct_pass_is_the_core_direct_light_at_each_point_and_its_mean() {
+    use radiosity::bakefile::surface::SAMPLES_PER_PATCH;
+    use radiosity::core::light::Prepared;
+    use radiosity::runtime::direct::irradiance;
+    let mut quads = box_inward([1.0, 0.75, 1.25], 0.6);
+    quads.push(quad(
+        [0.4, 0.35, 0.5],
+        [1.0, 0.0, 0.0],
+        [0.0, 0.0, -1.0],
+        0.2,
+        0.3,
+        [0.6; 3],
+    ));
+    let obj = write_quads("rt-direct-pass", &quads);
+    let (rt, _) = bake(&obj, Resolution::VoxelSize(0.125), CodecKind::default());
+    let lights = [
+        point([0.5, 0.6, 0.6], 1.5),
+        Light::Spot {
+            position: [0.2, 0.7, 0.3],
+            direction: [0.3, -1.0, 0.5],
+            intensity: [2.0, 1.0, 0.5],
+            cone_angle_deg: 50.0,
+            beam_angle_deg: 20.0,
+        },
+    ];
+    let prepared = Prepared::all(&lights);
+    let n = rt.n();
+    let mut shadowed = 0;
+    for s in [1usize, 5, 8, 16] {
+        let (at, d) = irradiance(&rt.baked, &rt.direct, &lights, s);
+        for j in 0..n {
+            let points: Vec<([f64; 3], [f64; 3])> = (0..s)
+                .map(|k| {
+                    let i = j * SAMPLES_PER_PATCH + k;
+                    (
+                        rt.baked.samples.position[i].map(f64::from),
+                        rt.baked.samples.normal[i].map(f64::from),
+                    )
+                })
+                .collect();
+            let want = rt.direct.at_prepared_points_each(&points, &prepared);
+            let mut sum = [0.0f64; 3];
+            for (k, w) in want.iter().enumerate() {
+                shadowed += usize::from(w[0] == 0.0);
+                for c in 0..3 {
+                    sum[c] += w[c];
+                    assert_eq!(
+                        at[c][j * s + k].to_bits(),
+                        (w[c] as f32).to_bits(),
+                        "s {s} patch {j} point {k}"
+                    );
+                }
+            }
+            for c in 0..3 {
+                assert_eq!(
+                    d[c][j].to_bits(),
+                    ((sum[c] / s as f64) as f32).to_bits(),
+                    "s {s} patch {j}"
+                );
+            }
+        }
+    }
+    assert!(shadowed > 0, "some points are dark");
 }
 
 #[test]
