@@ -368,6 +368,140 @@ impl Bvh4 {
         out
     }
 
+    /// [`Bvh4::closest_hit`] of up to [`PACKET`] segments `o[k] + t d[k]`
+    /// for the `k` set in `mask`, traversed together on AVX-512: each child
+    /// box is tested against the eight segments at once (the four-box
+    /// test's operations lane by lane), a lane skips a box it enters beyond
+    /// its nearest hit so far, children are visited nearest first for the
+    /// packet's first live segment, and a leaf's triangles are tested per
+    /// segment as [`Bvh4::closest_hit`] tests them. So each lane's distance
+    /// is the one [`Bvh4::closest_hit`] finds; where two triangles lie at
+    /// exactly the same distance the one named may differ (the visiting
+    /// order decides, as between the binary and four-wide traversals).
+    /// Camera rays through neighbouring pixels share most of their nodes.
+    /// Elsewhere: one [`Bvh4::closest_hit`] per segment.
+    pub fn closest_hit_packet(
+        &self,
+        bvh: &Bvh,
+        o: &[[f64; 3]; PACKET],
+        d: &[[f64; 3]; PACKET],
+        mask: u8,
+    ) -> [Option<(u32, f64)>; PACKET] {
+        let mut out = [None; PACKET];
+        if self.nodes.is_empty() || mask == 0 {
+            return out;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: `avx512` is set only where the CPU reports AVX-512F.
+            unsafe { self.closest_packet_avx512(bvh, o, d, mask, &mut out) };
+            return out;
+        }
+        for k in 0..PACKET {
+            if mask >> k & 1 != 0 {
+                out[k] = self.closest_hit(bvh, o[k], d[k]);
+            }
+        }
+        out
+    }
+
+    /// [`Bvh4::closest_hit_packet`] on AVX-512.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn closest_packet_avx512(
+        &self,
+        bvh: &Bvh,
+        o: &[[f64; 3]; PACKET],
+        d: &[[f64; 3]; PACKET],
+        mask: u8,
+        out: &mut [Option<(u32, f64)>; PACKET],
+    ) {
+        use std::arch::x86_64::*;
+        let inv: [[f64; 3]; PACKET] = std::array::from_fn(|k| d[k].map(|x| 1.0 / x));
+        let lanes = |f: &dyn Fn(usize) -> f64| -> __m512d {
+            let v: [f64; PACKET] = std::array::from_fn(f);
+            // SAFETY: eight f64, unaligned load.
+            unsafe { _mm512_loadu_pd(v.as_ptr()) }
+        };
+        let ov: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| o[k][a]));
+        let iv: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| inv[k][a]));
+        let (zero, one) = (_mm512_setzero_pd(), _mm512_set1_pd(1.0));
+        // Per lane the nearest hit's distance so far (∞ for none).
+        let mut best = [f64::INFINITY; PACKET];
+        let mut stack = [(0u32, 0u8); STACK4];
+        stack[0] = (0, mask);
+        let mut sp = 1usize;
+        while sp > 0 {
+            sp -= 1;
+            let (node, rays) = stack[sp];
+            let n = &self.nodes[node as usize];
+            let [wlo, whi] = &self.wide[node as usize];
+            let mut t0s = [zero; 4];
+            let mut passes = [0u8; 4];
+            for c in 0..4 {
+                let (mut t0, mut t1) = (zero, one);
+                for a in 0..3 {
+                    let lo = _mm512_set1_pd(wlo[a][c]);
+                    let hi = _mm512_set1_pd(whi[a][c]);
+                    let x = _mm512_mul_pd(_mm512_sub_pd(lo, ov[a]), iv[a]);
+                    let y = _mm512_mul_pd(_mm512_sub_pd(hi, ov[a]), iv[a]);
+                    t0 = _mm512_max_pd(_mm512_min_pd(x, y), t0);
+                    t1 = _mm512_min_pd(_mm512_max_pd(x, y), t1);
+                }
+                t0s[c] = t0;
+                passes[c] = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(t0, t1);
+            }
+            // Children by the entry of the first live lane, nearest first.
+            let lead = (rays.trailing_zeros() as usize).min(PACKET - 1);
+            let mut entry = [0.0f64; 4];
+            for c in 0..4 {
+                let mut v = [0.0f64; PACKET];
+                _mm512_storeu_pd(v.as_mut_ptr(), t0s[c]);
+                entry[c] = v[lead];
+            }
+            let mut order = [0usize, 1, 2, 3];
+            order.sort_unstable_by(|&a, &b| entry[a].total_cmp(&entry[b]));
+            let mut inner = [(0u32, 0u8); 4];
+            let mut m = 0;
+            for &c in &order {
+                if n.valid >> c & 1 == 0 {
+                    continue;
+                }
+                // Lanes that cross the box no farther than their nearest
+                // hit so far (which the leaves before may have moved).
+                let near = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(t0s[c], _mm512_loadu_pd(best.as_ptr()));
+                let pass = passes[c] & rays & near;
+                if pass == 0 {
+                    continue;
+                }
+                let child = n.child[c];
+                if child & LEAF == 0 {
+                    inner[m] = (child, pass);
+                    m += 1;
+                    continue;
+                }
+                let ln = &bvh.nodes[(child & !LEAF) as usize];
+                let mut left = pass;
+                while left != 0 {
+                    let k = left.trailing_zeros() as usize;
+                    left &= left - 1;
+                    if slab(ln, o[k], inv[k]).is_some() {
+                        bvh.nearest_in_leaf(ln, o[k], d[k], &mut out[k]);
+                        if let Some((_, t)) = out[k] {
+                            best[k] = t;
+                        }
+                    }
+                }
+            }
+            // The farther pushed first, so the nearer is popped first.
+            for &x in inner[..m].iter().rev() {
+                assert!(sp < STACK4, "BVH4 packet traversal stack overflow");
+                stack[sp] = x;
+                sp += 1;
+            }
+        }
+    }
+
     /// [`Bvh4::any_hit_packet`] on AVX-512.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]

@@ -219,6 +219,18 @@ impl DirectLight {
         self.bvh4.closest_hit(&self.bvh, o, d)
     }
 
+    /// [`DirectLight::closest_hit`] of up to [`PACKET`] segments at once
+    /// (the lanes set in `mask`; [`Bvh4::closest_hit_packet`]: the same
+    /// distances, the triangle named at an exact tie possibly the other).
+    pub fn closest_hit_packet(
+        &self,
+        o: &[[f64; 3]; PACKET],
+        d: &[[f64; 3]; PACKET],
+        mask: u8,
+    ) -> [Option<(u32, f64)>; PACKET] {
+        self.bvh4.closest_hit_packet(&self.bvh, o, d, mask)
+    }
+
     /// The BVH of the scene's triangles (world coordinates, no shift).
     pub fn bvh(&self) -> &Bvh {
         &self.bvh

@@ -15,6 +15,7 @@
 use super::surface::{self, Lookup};
 use super::texture::Albedo;
 use super::Runtime;
+use crate::core::bvh4::PACKET;
 use crate::core::direct::ShadowCache;
 use crate::core::math::{add, cross, dot, normalize, scale, sub};
 use crate::core::scene_config::{Camera, SceneConfig};
@@ -147,10 +148,26 @@ pub fn render(
             let mut cov = vec![false; width];
             // Neighbouring pixels share their shadows' blockers.
             let mut shadows = ShadowCache::new(lights.len());
+            // Primary rays eight pixels at a time (neighbouring camera
+            // rays share most of their nodes).
+            let mut hits = [None; PACKET];
+            let mut dirs = [[0.0f64; 3]; PACKET];
             for px in 0..width {
                 s.pixels += 1;
-                let (o, d) = rays.ray(px, py);
-                let Some((k, t)) = rt.direct.closest_hit(o, scale(d, far)) else {
+                let lane = px % PACKET;
+                if lane == 0 {
+                    let live = (width - px).min(PACKET);
+                    let mut o = [[0.0f64; 3]; PACKET];
+                    let mut seg = [[0.0f64; 3]; PACKET];
+                    for k in 0..live {
+                        let (ok, dk) = rays.ray(px + k, py);
+                        (o[k], dirs[k], seg[k]) = (ok, dk, scale(dk, far));
+                    }
+                    let mask = ((1u16 << live) - 1) as u8;
+                    hits = rt.direct.closest_hit_packet(&o, &seg, mask);
+                }
+                let (o, d) = (rays.eye, dirs[lane]);
+                let Some((k, t)) = hits[lane] else {
                     continue;
                 };
                 s.hits += 1;
