@@ -425,7 +425,6 @@ impl Bvh4 {
         };
         let ov: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| o[k][a]));
         let iv: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| inv[k][a]));
-        let (zero, one) = (_mm512_setzero_pd(), _mm512_set1_pd(1.0));
         // Per lane the nearest hit's distance so far (∞ for none).
         let mut best = [f64::INFINITY; PACKET];
         let mut stack = [(0u32, 0u8); STACK4];
@@ -435,22 +434,7 @@ impl Bvh4 {
             sp -= 1;
             let (node, rays) = stack[sp];
             let n = &self.nodes[node as usize];
-            let [wlo, whi] = &self.wide[node as usize];
-            let mut t0s = [zero; 4];
-            let mut passes = [0u8; 4];
-            for c in 0..4 {
-                let (mut t0, mut t1) = (zero, one);
-                for a in 0..3 {
-                    let lo = _mm512_set1_pd(wlo[a][c]);
-                    let hi = _mm512_set1_pd(whi[a][c]);
-                    let x = _mm512_mul_pd(_mm512_sub_pd(lo, ov[a]), iv[a]);
-                    let y = _mm512_mul_pd(_mm512_sub_pd(hi, ov[a]), iv[a]);
-                    t0 = _mm512_max_pd(_mm512_min_pd(x, y), t0);
-                    t1 = _mm512_min_pd(_mm512_max_pd(x, y), t1);
-                }
-                t0s[c] = t0;
-                passes[c] = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(t0, t1);
-            }
+            let (t0s, passes) = boxes8(&self.wide[node as usize], &ov, &iv);
             // Children by the entry of the first live lane, nearest first.
             let lead = (rays.trailing_zeros() as usize).min(PACKET - 1);
             let mut entry = [0.0f64; 4];
@@ -522,34 +506,13 @@ impl Bvh4 {
         };
         let ov: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| o[k][a]));
         let iv: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| inv[k][a]));
-        let (zero, one) = (_mm512_setzero_pd(), _mm512_set1_pd(1.0));
         let mut active = mask;
         let mut stack = [(0u32, 0u8); STACK4];
         let mut sp = 0usize;
         let (mut node, mut rays) = (0u32, mask);
         loop {
             let n = &self.nodes[node as usize];
-            let [wlo, whi] = &self.wide[node as usize];
-            // The four children's tests first, without branches, so that
-            // their dependency chains overlap (a child at a time, each
-            // test waited for before the next: the interior's direct light
-            // at 3,499 patches 4.58–4.64 ms, against 4.43–4.48 so and
-            // 4.93–4.98 a ray at a time).
-            let mut passes = [0u8; 4];
-            for (c, p) in passes.iter_mut().enumerate() {
-                let (mut t0, mut t1) = (zero, one);
-                for a in 0..3 {
-                    let lo = _mm512_set1_pd(wlo[a][c]);
-                    let hi = _mm512_set1_pd(whi[a][c]);
-                    let x = _mm512_mul_pd(_mm512_sub_pd(lo, ov[a]), iv[a]);
-                    let y = _mm512_mul_pd(_mm512_sub_pd(hi, ov[a]), iv[a]);
-                    // As test4_avx: min(x, y), max(x, y), then the NaN
-                    // operand first against t0, t1.
-                    t0 = _mm512_max_pd(_mm512_min_pd(x, y), t0);
-                    t1 = _mm512_min_pd(_mm512_max_pd(x, y), t1);
-                }
-                *p = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(t0, t1);
-            }
+            let (_, passes) = boxes8(&self.wide[node as usize], &ov, &iv);
             let mut next = None;
             let mut valid = n.valid;
             while valid != 0 {
@@ -605,6 +568,49 @@ impl Bvh4 {
             }
         }
     }
+}
+
+/// A node's four child boxes against eight segments (lane by lane: origin
+/// `ov`, inverse direction `iv`), from its bounds in f64 (`[lo, hi][axis]
+/// [child]`): per child the entry parameters and the lanes whose segment
+/// meets the box within `t ∈ [0, 1]`. The operations of [`test4_avx`]
+/// lane by lane, so a box passes for a segment exactly when it does
+/// there. The four tests run first, without branches, so that their
+/// dependency chains overlap (a child at a time, each test waited for
+/// before the next: the interior's direct light at 3,499 patches
+/// 4.58–4.64 ms, against 4.43–4.48 so and 4.93–4.98 a ray at a time).
+///
+/// # Safety
+/// The CPU must support AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn boxes8(
+    wide: &[[[f64; 4]; 3]; 2],
+    ov: &[std::arch::x86_64::__m512d; 3],
+    iv: &[std::arch::x86_64::__m512d; 3],
+) -> ([std::arch::x86_64::__m512d; 4], [u8; 4]) {
+    use std::arch::x86_64::*;
+    let [wlo, whi] = wide;
+    let (zero, one) = (_mm512_setzero_pd(), _mm512_set1_pd(1.0));
+    let mut t0s = [zero; 4];
+    let mut passes = [0u8; 4];
+    for c in 0..4 {
+        let (mut t0, mut t1) = (zero, one);
+        for a in 0..3 {
+            let lo = _mm512_set1_pd(wlo[a][c]);
+            let hi = _mm512_set1_pd(whi[a][c]);
+            let x = _mm512_mul_pd(_mm512_sub_pd(lo, ov[a]), iv[a]);
+            let y = _mm512_mul_pd(_mm512_sub_pd(hi, ov[a]), iv[a]);
+            // As test4_avx: min(x, y), max(x, y), then the NaN operand
+            // first against t0, t1.
+            t0 = _mm512_max_pd(_mm512_min_pd(x, y), t0);
+            t1 = _mm512_min_pd(_mm512_max_pd(x, y), t1);
+        }
+        t0s[c] = t0;
+        passes[c] = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(t0, t1);
+    }
+    (t0s, passes)
 }
 
 fn empty() -> Node4 {
