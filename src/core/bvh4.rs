@@ -417,14 +417,7 @@ impl Bvh4 {
         out: &mut [Option<(u32, f64)>; PACKET],
     ) {
         use std::arch::x86_64::*;
-        let inv: [[f64; 3]; PACKET] = std::array::from_fn(|k| d[k].map(|x| 1.0 / x));
-        let lanes = |f: &dyn Fn(usize) -> f64| -> __m512d {
-            let v: [f64; PACKET] = std::array::from_fn(f);
-            // SAFETY: eight f64, unaligned load.
-            unsafe { _mm512_loadu_pd(v.as_ptr()) }
-        };
-        let ov: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| o[k][a]));
-        let iv: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| inv[k][a]));
+        let (inv, ov, iv) = packet_lanes(o, d);
         // Per lane the nearest hit's distance so far (∞ for none).
         let mut best = [f64::INFINITY; PACKET];
         let mut stack = [(0u32, 0u8); STACK4];
@@ -497,15 +490,7 @@ impl Bvh4 {
         mask: u8,
         out: &mut [Option<(u32, u32)>; PACKET],
     ) {
-        use std::arch::x86_64::*;
-        let inv: [[f64; 3]; PACKET] = std::array::from_fn(|k| d[k].map(|x| 1.0 / x));
-        let lanes = |f: &dyn Fn(usize) -> f64| -> __m512d {
-            let v: [f64; PACKET] = std::array::from_fn(f);
-            // SAFETY: eight f64, unaligned load.
-            unsafe { _mm512_loadu_pd(v.as_ptr()) }
-        };
-        let ov: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| o[k][a]));
-        let iv: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| inv[k][a]));
+        let (inv, ov, iv) = packet_lanes(o, d);
         let mut active = mask;
         let mut stack = [(0u32, 0u8); STACK4];
         let mut sp = 0usize;
@@ -568,6 +553,35 @@ impl Bvh4 {
             }
         }
     }
+}
+
+/// A packet's inverse directions, and its origins and inverse directions
+/// by coordinate, one lane a segment: what [`boxes8`] takes.
+///
+/// # Safety
+/// The CPU must support AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+#[allow(clippy::type_complexity)]
+unsafe fn packet_lanes(
+    o: &[[f64; 3]; PACKET],
+    d: &[[f64; 3]; PACKET],
+) -> (
+    [[f64; 3]; PACKET],
+    [std::arch::x86_64::__m512d; 3],
+    [std::arch::x86_64::__m512d; 3],
+) {
+    use std::arch::x86_64::*;
+    let inv: [[f64; 3]; PACKET] = std::array::from_fn(|k| d[k].map(|x| 1.0 / x));
+    let lanes = |f: &dyn Fn(usize) -> f64| -> __m512d {
+        let v: [f64; PACKET] = std::array::from_fn(f);
+        // SAFETY: eight f64, unaligned load.
+        unsafe { _mm512_loadu_pd(v.as_ptr()) }
+    };
+    let ov: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| o[k][a]));
+    let iv: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| inv[k][a]));
+    (inv, ov, iv)
 }
 
 /// A node's four child boxes against eight segments (lane by lane: origin
