@@ -186,8 +186,8 @@ pub fn run(
             } else {
                 let m = rt.near.m;
                 let (d_points, _) = direct::irradiance(&rt.baked, &rt.direct, &config.lights, m);
-                rt.near
-                    .correction(&direct::reflected_at_points(&rt.baked, &d_points, m))
+                rt.near_correction(&d_points)
+                    .expect("the bake has a correction")
             };
             let f1: Vec<[f64; 3]> = (0..n)
                 .into_par_iter()

@@ -151,22 +151,21 @@ pub fn render(
             // Primary rays eight pixels at a time (neighbouring camera
             // rays share most of their nodes).
             let mut hits = [None; PACKET];
-            let mut dirs = [[0.0f64; 3]; PACKET];
+            let mut rays8 = [([0.0f64; 3], [0.0f64; 3]); PACKET];
             for px in 0..width {
                 s.pixels += 1;
                 let lane = px % PACKET;
                 if lane == 0 {
                     let live = (width - px).min(PACKET);
-                    let mut o = [[0.0f64; 3]; PACKET];
-                    let mut seg = [[0.0f64; 3]; PACKET];
-                    for k in 0..live {
-                        let (ok, dk) = rays.ray(px + k, py);
-                        (o[k], dirs[k], seg[k]) = (ok, dk, scale(dk, far));
+                    for (k, r) in rays8.iter_mut().enumerate().take(live) {
+                        *r = rays.ray(px + k, py);
                     }
+                    let o = rays8.map(|r| r.0);
+                    let seg = rays8.map(|r| scale(r.1, far));
                     let mask = ((1u16 << live) - 1) as u8;
                     hits = rt.direct.closest_hit_packet(&o, &seg, mask);
                 }
-                let (o, d) = (rays.eye, dirs[lane]);
+                let (o, d) = rays8[lane];
                 let Some((k, t)) = hits[lane] else {
                     continue;
                 };
