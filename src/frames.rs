@@ -145,6 +145,7 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
     if !(1..=16).contains(&args.samples) {
         bail!("--samples {}: expected 1..=16", args.samples);
     }
+    check_exposure(args.exposure)?;
     if args.width == 0 || args.height == 0 || args.width * args.height > 1 << 26 {
         bail!(
             "--width {} --height {}: the image must have between 1 and 2^26 pixels",
@@ -353,6 +354,18 @@ pub(crate) fn write_png(
     Ok(exposure)
 }
 
+/// A fixed exposure must scale radiance to something displayable: a
+/// positive finite factor (NaN or infinity would write a black or white
+/// image without a word).
+fn check_exposure(exposure: Option<f32>) -> anyhow::Result<()> {
+    match exposure {
+        Some(e) if !(e.is_finite() && e > 0.0) => {
+            bail!("--exposure {e}: expected a positive finite factor")
+        }
+        _ => Ok(()),
+    }
+}
+
 /// `radiosity view`.
 pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
     use radiosity::runtime::{Runtime, RuntimeOptions};
@@ -374,6 +387,7 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
             args.height
         );
     }
+    check_exposure(args.exposure)?;
     if args.frames == Some(0) {
         bail!("--frames 0: expected at least 1");
     }

@@ -178,11 +178,11 @@ enum BenchCommand {
         #[arg(short, long, default_value = "docs/sweep")]
         output: PathBuf,
         /// The bound on a baseline point's relative RMS error of H.
-        #[arg(long, default_value_t = 0.05)]
+        #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
         max_error: f64,
         /// The bound on a baseline point's indirect image error against
         /// Mitsuba 3 (noise removed).
-        #[arg(long, default_value_t = 0.5)]
+        #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
         max_image_error: f64,
         /// Leave out the image errors against Mitsuba 3.
         #[arg(long)]
@@ -387,7 +387,7 @@ struct RenderArgs {
     #[arg(long, value_name = "OUT.pfm")]
     hdr: Option<PathBuf>,
     /// Exposure (default: automatic, 0.18 over the log-average luminance).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     exposure: Option<f32>,
     /// Sample points per patch for direct light (1..=16).
     #[arg(long, default_value_t = radiosity::runtime::direct::DEFAULT_SAMPLES)]
@@ -427,7 +427,7 @@ struct ViewArgs {
     #[arg(long, value_name = "FILE.png")]
     screenshot: Option<PathBuf>,
     /// Exposure (default: automatic from the first frame).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     exposure: Option<f32>,
     /// Where there is no display: render the starting view headless to
     /// this PNG instead (GL through EGL, else the CPU) and print its path.
@@ -462,7 +462,7 @@ struct BakeArgs {
     #[arg(short, long, value_name = "OUT.rad")]
     output: Option<PathBuf>,
     /// Voxel edge length in scene units.
-    #[arg(long, conflicts_with = "patches")]
+    #[arg(long, conflicts_with = "patches", allow_negative_numbers = true)]
     voxel_size: Option<f64>,
     /// Target patch count; the voxel size is searched for. Default 2000.
     #[arg(long)]
@@ -486,7 +486,7 @@ struct BakeArgs {
     /// Near-field links with a measured form factor below this (0..=1) are
     /// not stored; their light still reaches the receivers through each
     /// patch's far weights. Lower keeps more links (larger file).
-    #[arg(long, value_name = "F", default_value_t = radiosity::bake::near_field::MIN_FORM_FACTOR)]
+    #[arg(long, value_name = "F", default_value_t = radiosity::bake::near_field::MIN_FORM_FACTOR, allow_negative_numbers = true)]
     near_field_min_form_factor: f64,
     /// Form-factor emitter samples per side, contour method (1..=16, default 4).
     #[arg(long)]
@@ -509,13 +509,18 @@ struct BakeArgs {
     /// BC texture (bc1/bc4; exact with sparse=f32, within 2^-11 with f16,
     /// within 2^-9 of the largest channel with rgb9e5;
     /// default 0.04).
-    #[arg(long, value_name = "F", conflicts_with = "max_error")]
+    #[arg(
+        long,
+        value_name = "F",
+        conflicts_with = "max_error",
+        allow_negative_numbers = true
+    )]
     top_fraction: Option<f64>,
     /// Choose the cheapest codec setting whose relative RMS error of H = T·B0
     /// over the error lights is at most E, preferring BC1/BC4 within twice
     /// its bytes (fast CPU decode); default 0.02 unless --codec or
     /// --top-fraction fixes the setting.
-    #[arg(long, value_name = "E")]
+    #[arg(long, value_name = "E", allow_negative_numbers = true)]
     max_error: Option<f64>,
     /// Seeded random lights the compression error is measured over (0: do
     /// not measure).

@@ -311,9 +311,11 @@ fn bake_sponza_with_a_patch_target() {
 fn bad_options_and_devices_are_refused() {
     let path = common::bundled("cornell_box");
     let p = path.to_str().unwrap();
-    let o = radiosity(&["bake", p, "--voxel-size=-1"]);
-    assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("--voxel-size"), "{}", stderr(&o));
+    for flag in [["--voxel-size=-1"].as_slice(), &["--voxel-size", "-1"]] {
+        let o = radiosity(&[&["bake", p], flag].concat());
+        assert_eq!(o.status.code(), Some(1));
+        assert!(stderr(&o).contains("--voxel-size"), "{}", stderr(&o));
+    }
     let o = radiosity(&["bake", p, "--patches", "0"]);
     assert_eq!(o.status.code(), Some(1));
     let o = radiosity(&["bake", p, "--near-field-rays", "70000"]);
@@ -416,6 +418,18 @@ fn render_bakes_or_reuses_and_writes_png_and_pfm() {
     let o = run(&["--samples", "0"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("--samples"), "{}", stderr(&o));
+    // A fixed exposure that is not a positive finite factor would write a
+    // black or white image; it is refused, negative numbers included
+    // (given as a value, not taken for a flag).
+    for bad in ["nan", "inf", "0", "-1"] {
+        let o = run(&["--exposure", bad]);
+        assert_eq!(o.status.code(), Some(1), "{bad}");
+        assert!(
+            stderr(&o).contains("--exposure") && stderr(&o).contains("positive finite"),
+            "{bad}: {}",
+            stderr(&o)
+        );
+    }
     // A scene without its camera-and-lights file gets a default one, said
     // on stderr; a file that is named but missing is an error naming it.
     std::fs::remove_file(dir.join("cornell_box.json")).unwrap();
