@@ -204,33 +204,24 @@ pub(crate) fn load_bake(
     PathBuf,
     SceneConfig,
 )> {
-    use radiosity::bakefile::baked::{resolve_scene_path, Baked};
     let early = camera_lights_before_bake(
         camera_lights_given.as_deref(),
         input,
         scene_given.as_deref(),
     )?;
     let rad = bake_for(input, patches, device)?;
-    let baked = Baked::load(&rad)?;
-    let scene_path = scene_given.unwrap_or_else(|| resolve_scene_path(&rad, &baked.info.scene));
-    let scene = scene::load(&scene_path).with_context(|| {
-        format!(
-            "loading the scene {} (give it with --scene)",
-            scene_path.display()
-        )
-    })?;
+    let (baked, scene, scene_path) =
+        radiosity::runtime::open::load_checked(&rad, scene_given.as_deref()).map_err(|e| {
+            let hint = matches!(e, radiosity::runtime::open::OpenError::Scene { .. });
+            let hint = if hint {
+                " (--scene names the scene where it moved)"
+            } else {
+                ""
+            };
+            anyhow::Error::new(e).context(format!("opening {}{hint}", rad.display()))
+        })?;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
-    }
-    let hash = bakefile::SceneHash::of_scene(&scene)?;
-    let diff = baked.scene_hash.differences(&hash);
-    if !diff.is_empty() {
-        bail!(
-            "{} was baked from a different scene than {} ({} changed): bake it again",
-            rad.display(),
-            scene_path.display(),
-            diff.join(", ")
-        );
     }
     let config = match early {
         Some(c) => c,

@@ -28,7 +28,7 @@
 //! | [`core`] | nothing of this crate |
 //! | [`bakefile`] (the contract) | `core` |
 //! | [`bake`] | `core`, `bakefile` |
-//! | [`runtime`] (the CPU frame, the reference) | `core`, `bakefile` |
+//! | [`runtime`] (the CPU frame, the reference; [`runtime::open`] is where an embedding application starts) | `core`, `bakefile` |
 //! | [`gl`] (the GPU frame, one file per pass paired with `glsl/<pass>.*`) | `core`, `bakefile`, `runtime` (its definitions: views, images, emission, the gather's column flags) |
 //! | [`viewer`] (the window) | `core`, `runtime`, `gl` |
 //! | [`reference`] (our path tracer on the original triangles) | `core` |

@@ -469,3 +469,114 @@ fn emission_scales_per_material_and_reproduces_the_stored_emission() {
     rt.frame(&[], &half);
     assert!(rt.h().iter().all(|c| c.iter().all(|&v| v == 0.0)));
 }
+
+/// `examples/embed.rs`, the README's embedding example, run here.
+#[path = "../examples/embed.rs"]
+mod embed;
+
+/// What an application embedding the run time does (`examples/embed.rs`):
+/// open a bake with its scene, light it frame after frame with a spot that
+/// swings, read `D` and `H` at a point of the scene. The spot's direct
+/// light at the probe is the closed form `I cos θ / r²` (the probe lies
+/// inside the beam), each frame after the first recomputes only the
+/// spot's product; and a scene that is not the one baked is refused,
+/// naming what changed, in the library and on the command line.
+#[test]
+fn an_application_opens_a_bake_lights_it_and_reads_light_at_points() {
+    let src = common::bundled("cornell_box");
+    let dir = common::temp_dir("rt-embed");
+    for f in ["cornell_box.obj", "cornell_box.mtl"] {
+        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
+    }
+    let obj = dir.join("cornell_box.obj");
+    let (_, rad) = bake(&obj, Resolution::VoxelSize(60.0), CodecKind::default());
+    let frames = embed::run(&rad, 4).expect("the example runs");
+    assert_eq!(frames.len(), 4);
+    let opened = Runtime::open(&rad, None, RuntimeOptions::default()).unwrap();
+    for (k, f) in frames.iter().enumerate() {
+        let expect = if k == 0 { (2, 0) } else { (1, 1) };
+        assert_eq!((f.terms_computed, f.terms_reused), expect, "frame {k}");
+        let (tri, x) = f
+            .probe
+            .expect("the ray down from the centre meets the floor or a block");
+        let Light::Spot {
+            position,
+            intensity,
+            ..
+        } = f.light
+        else {
+            unreachable!()
+        };
+        let n = opened.scene.triangle_normal(tri);
+        // The direct light is evaluated where shadow rays start: the point
+        // lifted off its surface along the normal.
+        let x: [f64; 3] = std::array::from_fn(|c| x[c] + opened.direct.offset() * n[c]);
+        let l: [f64; 3] = std::array::from_fn(|c| position[c] as f64 - x[c]);
+        let r2: f64 = l.iter().map(|v| v * v).sum();
+        let cos = (0..3).map(|c| n[c] * l[c]).sum::<f64>() / r2.sqrt();
+        for c in 0..3 {
+            let want = intensity[c] as f64 * cos / r2;
+            // The light's definition in f64 from the same f32 inputs, in
+            // another order of operations: a few ulps.
+            assert!(
+                (f.direct[c] - want).abs() <= 1e-12 * want,
+                "frame {k}: D {} against I cos / r² {want}",
+                f.direct[c]
+            );
+            // The lamp and the spot light the box: every point gets
+            // indirect light, and the mean over the patches too.
+            assert!(f.indirect[c] > 0.0 && f.mean_h[c] > 0.0, "frame {k}: {f:?}");
+        }
+    }
+    // The spot swings: the probe's indirect light follows.
+    assert_ne!(frames[0].indirect, frames[1].indirect);
+
+    // A scene given elsewhere, with the same files, opens.
+    let elsewhere = dir.join("copy");
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    for f in ["cornell_box.obj", "cornell_box.mtl"] {
+        std::fs::copy(dir.join(f), elsewhere.join(f)).unwrap();
+    }
+    let given = elsewhere.join("cornell_box.obj");
+    let rt = Runtime::open(&rad, Some(&given), RuntimeOptions::default()).expect("same files");
+    assert_eq!(rt.scene.source, given);
+    // Changed files are named.
+    use radiosity::runtime::open::OpenError;
+    for (file, changed) in [("cornell_box.obj", "obj"), ("cornell_box.mtl", "mtl")] {
+        let path = dir.join(file);
+        let original = std::fs::read(&path).unwrap();
+        let mut edited = original.clone();
+        edited.extend_from_slice(b"\n# edited after the bake\n");
+        std::fs::write(&path, &edited).unwrap();
+        match Runtime::open(&rad, None, RuntimeOptions::default()) {
+            Err(OpenError::SceneChanged {
+                changed: c, scene, ..
+            }) => {
+                assert_eq!(c, vec![changed]);
+                assert_eq!(scene, obj);
+            }
+            other => panic!("{file} edited: {:?}", other.err()),
+        }
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_radiosity"))
+            .args(["render", rad.to_str().unwrap(), "-o"])
+            .arg(dir.join("x.png"))
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{e}");
+        assert!(
+            e.contains("different scene") && e.contains(&format!("({changed})")),
+            "{e}"
+        );
+        assert!(!dir.join("x.png").exists());
+        std::fs::write(&path, &original).unwrap();
+    }
+    // A missing scene names the path looked for.
+    std::fs::rename(&obj, dir.join("moved.obj")).unwrap();
+    let e = Runtime::open(&rad, None, RuntimeOptions::default()).err();
+    match &e {
+        Some(OpenError::Scene { path, .. }) => assert_eq!(path, &obj),
+        other => panic!("scene moved away: {other:?}"),
+    }
+    assert!(e.unwrap().to_string().contains("cornell_box.obj"));
+}

@@ -32,6 +32,7 @@ pub mod direct;
 pub mod emission;
 pub mod gather;
 pub mod near_field;
+pub mod open;
 pub mod render;
 pub mod surface;
 pub mod texture;
