@@ -379,6 +379,12 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
         );
     }
     check_exposure(args.exposure)?;
+    let patch_light = viewer::PatchLight::parse(&args.patch_light).with_context(|| {
+        format!(
+            "--patch-light {:?}: expected gpu, cpu or auto",
+            args.patch_light
+        )
+    })?;
     if args.frames == Some(0) {
         bail!("--frames 0: expected at least 1");
     }
@@ -448,6 +454,7 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
             },
             exposure: args.exposure,
             title,
+            patch_light,
         },
     )
     .map_err(|e| match e {
@@ -462,9 +469,13 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
         .filter_map(|(n, t)| t.map(|ms| format!("{n} {ms:.2} ms")))
         .collect();
     eprintln!(
-        "{} frames in {:.2} s; last GPU times: {}",
+        "{} frames in {:.2} s; patch light on the {}; last GPU times: {}",
         report.frames,
         report.seconds,
+        match report.patch_light {
+            Some(viewer::PatchLight::Cpu) => "CPU",
+            _ => "GPU",
+        },
         passes.join(", ")
     );
     for p in &report.screenshots {

@@ -429,6 +429,12 @@ struct ViewArgs {
     /// Exposure (default: automatic from the first frame).
     #[arg(long, allow_negative_numbers = true)]
     exposure: Option<f32>,
+    /// Where each frame's patch light (direct light on the patches and the
+    /// gather) runs: gpu, cpu (the CPU run time, H uploaded for the GPU's
+    /// shading: for software GL such as llvmpipe), or auto (both timed on
+    /// the first frame, the faster kept).
+    #[arg(long, default_value = "auto")]
+    patch_light: String,
     /// Where there is no display: render the starting view headless to
     /// this PNG instead (GL through EGL, else the CPU) and print its path.
     #[arg(long, value_name = "FILE.png")]

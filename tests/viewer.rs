@@ -110,6 +110,72 @@ fn scripted_frames_in_a_window_show_what_the_headless_renderer_draws() {
     assert!(mean > 20.0, "mean red {mean}");
 }
 
+/// `--patch-light cpu`: the CPU run time's `H` in the GPU's shading gives
+/// the picture of the GPU's own patch light, up to how the two compute
+/// `D` on the patches (shadow rays against shadow maps); `auto` times
+/// both and, on llvmpipe, where the GL gather is two orders of magnitude
+/// slower than the CPU's, keeps the CPU.
+#[test]
+fn patch_light_on_the_cpu_shows_what_the_gpu_computes() {
+    let (obj, dir) = cornell("viewer-patch-light");
+    let obj = obj.to_str().unwrap();
+    let size = ["--width", "160", "--height", "120", "--patches", "800"];
+    let shot = |mode: &str| {
+        let png = dir.join(format!("{mode}.png"));
+        let o = radiosity(
+            &dir,
+            &[
+                &[
+                    "view",
+                    obj,
+                    "--frames",
+                    "3",
+                    "--patch-light",
+                    mode,
+                    "--screenshot",
+                    png.to_str().unwrap(),
+                ],
+                &size[..],
+            ]
+            .concat(),
+            true,
+        );
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "--patch-light {mode}: {err}");
+        (rgb(&png), err)
+    };
+    let (gpu, e) = shot("gpu");
+    assert!(e.contains("patch light on the GPU"), "{e}");
+    let (cpu, e) = shot("cpu");
+    assert!(e.contains("patch light on the CPU"), "{e}");
+    let (auto, e) = shot("auto");
+    assert!(
+        e.contains("a first frame took") && e.contains("patch light on the CPU"),
+        "llvmpipe's GL gather should lose to the CPU's: {e}"
+    );
+    let diff = |a: &image::RgbImage, b: &image::RgbImage| {
+        let d: Vec<i32> = a
+            .pixels()
+            .zip(b.pixels())
+            .flat_map(|(p, q)| (0..3).map(move |c| (p[c] as i32 - q[c] as i32).abs()))
+            .collect();
+        (
+            *d.iter().max().unwrap(),
+            d.iter().map(|&v| v as f64).sum::<f64>() / d.len() as f64,
+        )
+    };
+    let (worst, mean) = diff(&cpu, &gpu);
+    eprintln!("CPU patch light against the GPU's: worst {worst} / 255, mean {mean:.3}");
+    // Measured: worst 1, mean 0.10 (D on the patches: rays against shadow
+    // maps, 1–2 % on a few shadow-edge patches); bounds several times that.
+    assert!(worst <= 8 && mean <= 0.5, "worst {worst}, mean {mean}");
+    assert_eq!(
+        diff(&auto, &cpu).0,
+        0,
+        "auto chose the CPU: the same picture"
+    );
+}
+
 #[test]
 fn without_a_display_the_viewer_says_so_or_renders_headless() {
     let (obj, dir) = cornell("viewer-nodisplay");

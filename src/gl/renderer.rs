@@ -12,6 +12,11 @@
 //! columns of `B0` that are non-zero (flagged by the direct pass). The CPU
 //! run time ([`crate::runtime::Runtime`]) defines every quantity and is
 //! the reference of the tests (tests/gl_render.rs).
+//!
+//! **`H` from the CPU.** [`GlRenderer::frame_with_h`] takes the CPU run
+//! time's `H` instead of computing the patch light here: only the shadow
+//! maps (for the shading's direct light) run, for GL implementations that
+//! compute slowly (a software rasterizer), where the viewer chooses it.
 
 use super::direct::{GlDirect, LIGHT_BINDING, VIEW_BINDING};
 use super::gather::GlGather;
@@ -201,7 +206,9 @@ pub struct GlRenderer {
     packed: Packed,
     emission: Emission,
     materials: Vec<crate::core::scene::Material>,
-    last: Option<(Vec<Light>, BTreeMap<String, f32>)>,
+    /// The last frame's lights and scales, and whether its `H` came
+    /// from the CPU ([`GlRenderer::frame_with_h`]).
+    last: Option<(Vec<Light>, BTreeMap<String, f32>, bool)>,
     last_scales: Option<BTreeMap<String, f32>>,
     lift: f32,
     n: usize,
@@ -284,38 +291,16 @@ impl GlRenderer {
             lights: lights.len(),
             ..GlFrameStats::default()
         };
-        if self.options.cache
-            && self
-                .last
-                .as_ref()
-                .is_some_and(|(l, s)| l == lights && s == scales)
-        {
+        if self.unchanged(lights, scales, false) {
             stats.unchanged = true;
             return Ok(stats);
         }
-        let res = self.shadows.resolution;
-        self.packed = Packed::new(lights, self.scene.lo, self.scene.hi, res);
-        stats.views = self.packed.views.len();
-        fill_buffer(
-            gl,
-            self.lights_buffer,
-            bytes_of(&self.packed.lights),
-            glow::DYNAMIC_DRAW,
-        );
-        fill_buffer(
-            gl,
-            self.views_buffer,
-            bytes_of(&self.packed.view_words(res)),
-            glow::DYNAMIC_DRAW,
-        );
+        stats.views = self.shadow_maps(gl, lights)?;
         if self.last_scales.as_ref() != Some(scales) {
             self.direct
                 .set_emission(gl, &self.emission.exitance(self.n, scales));
             self.last_scales = Some(scales.clone());
         }
-        self.timers.begin(gl, Pass::Shadow);
-        self.shadows.render(gl, &self.scene, &self.packed.views)?;
-        self.timers.end(gl);
         self.timers.begin(gl, Pass::Direct);
         let samples = self
             .near
@@ -353,7 +338,91 @@ impl GlRenderer {
         // SAFETY: the gather's writes are read by the shading pass.
         unsafe { gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT) };
         super::check(gl, "the frame")?;
-        self.last = Some((lights.to_vec(), scales.clone()));
+        self.last = Some((lights.to_vec(), scales.clone(), false));
+        Ok(stats)
+    }
+
+    /// Whether a frame of `lights` and `scales` (its `H` from the CPU or
+    /// not) would recompute nothing.
+    fn unchanged(&self, lights: &[Light], scales: &BTreeMap<String, f32>, cpu: bool) -> bool {
+        self.options.cache
+            && self
+                .last
+                .as_ref()
+                .is_some_and(|(l, s, c)| l == lights && s == scales && *c == cpu)
+    }
+
+    /// The lights packed and uploaded, and their shadow maps rendered (the
+    /// shading pass's direct light reads them); returns the views drawn.
+    fn shadow_maps(&mut self, gl: &glow::Context, lights: &[Light]) -> Result<usize, GlError> {
+        let res = self.shadows.resolution;
+        self.packed = Packed::new(lights, self.scene.lo, self.scene.hi, res);
+        fill_buffer(
+            gl,
+            self.lights_buffer,
+            bytes_of(&self.packed.lights),
+            glow::DYNAMIC_DRAW,
+        );
+        fill_buffer(
+            gl,
+            self.views_buffer,
+            bytes_of(&self.packed.view_words(res)),
+            glow::DYNAMIC_DRAW,
+        );
+        self.timers.begin(gl, Pass::Shadow);
+        self.shadows.render(gl, &self.scene, &self.packed.views)?;
+        self.timers.end(gl);
+        Ok(self.packed.views.len())
+    }
+
+    /// A frame whose patch light was computed elsewhere: `h` is the CPU
+    /// run time's `H` of the same `lights` and `scales`
+    /// ([`Runtime::frame`], three channels of `n`), uploaded for the
+    /// shading pass; only the shadow maps are rendered here (the shading
+    /// pass's direct light at pixels). The direct, near-field and gather
+    /// passes do not run, so [`GlRenderer::d`] and [`GlRenderer::b0`] do
+    /// not describe this frame. Where GL is slow at compute (a software
+    /// rasterizer: llvmpipe's gather takes 100× the CPU's) this keeps the
+    /// window interactive. Nothing runs when nothing changed.
+    pub fn frame_with_h(
+        &mut self,
+        gl: &glow::Context,
+        lights: &[Light],
+        scales: &BTreeMap<String, f32>,
+        h: &[Vec<f32>; 3],
+    ) -> Result<GlFrameStats, GlError> {
+        self.timers.poll(gl, false);
+        if h.iter().any(|c| c.len() != self.n) {
+            return Err(GlError::Call(format!(
+                "H of {} patches given to a renderer of {}",
+                h[0].len(),
+                self.n
+            )));
+        }
+        let mut stats = GlFrameStats {
+            lights: lights.len(),
+            ..GlFrameStats::default()
+        };
+        if self.unchanged(lights, scales, true) {
+            stats.unchanged = true;
+            return Ok(stats);
+        }
+        stats.views = self.shadow_maps(gl, lights)?;
+        let mut bytes = Vec::with_capacity(12 * self.n);
+        for c in h {
+            for v in c {
+                bytes.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        // SAFETY: an upload into the gather's output buffer, which holds
+        // exactly 3 n floats, on the current context.
+        unsafe {
+            gl.bind_buffer(glow::SHADER_STORAGE_BUFFER, Some(self.gather.h_buffer()));
+            gl.buffer_sub_data_u8_slice(glow::SHADER_STORAGE_BUFFER, 0, &bytes);
+            gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT);
+        }
+        super::check(gl, "the frame with H from the CPU")?;
+        self.last = Some((lights.to_vec(), scales.clone(), true));
         Ok(stats)
     }
 
