@@ -806,6 +806,30 @@ fn config_rejects_zero_directions() {
     );
 }
 
+/// Valid at any scale: a scene far out or tiny (camera and target), an up vector or light directions
+/// with tiny or huge components (their squared lengths leave f32's range;
+/// the check of a parallel up vector once overflowed and named the up
+/// vector of a camera at 1e30).
+#[test]
+fn config_accepts_directions_and_positions_at_any_scale() {
+    for s in [1e-30f32, 1e30] {
+        let mut c = sample_config();
+        c.camera.position = c.camera.position.map(|v| v * s);
+        c.camera.target = c.camera.target.map(|v| v * s);
+        c.camera.up = c.camera.up.map(|v| v * s);
+        for l in &mut c.lights {
+            if let Light::Directional { direction, .. } | Light::Spot { direction, .. } = l {
+                *direction = direction.map(|v| v * s);
+            }
+        }
+        c.validate().unwrap_or_else(|e| panic!("scale {s}: {e}"));
+        // A parallel up vector is still refused at that scale.
+        let view: [f32; 3] = std::array::from_fn(|k| c.camera.target[k] - c.camera.position[k]);
+        c.camera.up = view.map(|v| v * 1e-3);
+        assert_eq!(c.validate().unwrap_err().field, "camera.up", "scale {s}");
+    }
+}
+
 #[test]
 fn config_rejects_non_finite_values() {
     // JSON has no NaN: the parser rejects it with its position.

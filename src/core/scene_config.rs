@@ -14,6 +14,7 @@
 //! directional light's `irradiance` is per scene unit² on a surface facing
 //! the light.
 
+use crate::core::math::{cross, dot, normalize, sub};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt;
@@ -220,8 +221,12 @@ impl SceneConfig {
                 "the target must differ from the camera position",
             ));
         }
-        let (v, u) = (glam::Vec3::from_array(view), glam::Vec3::from_array(c.up));
-        if v.normalize().cross(u.normalize()).length() < 1e-6 {
+        // In f64: a camera far out (1e30) or a tiny up vector (1e-30) is
+        // valid, and in f32 their squared lengths leave the range.
+        let f = |a: [f32; 3]| a.map(f64::from);
+        let view_dir = normalize(sub(f(c.target), f(c.position)));
+        let side = cross(view_dir, normalize(f(c.up)));
+        if !(dot(side, side).sqrt() >= 1e-6) {
             return Err(invalid(
                 "camera.up".into(),
                 show3(c.up),

@@ -74,7 +74,7 @@ impl Packed {
                     direction,
                     irradiance,
                 } => {
-                    let d = Vec3::from(direction).normalize_or(Vec3::NEG_Y);
+                    let d = unit(direction);
                     let eye = centre - 2.0 * radius * d;
                     let view = look_at_mat4(eye, centre, up_for(d));
                     let proj = opengl::orthographic(
@@ -90,7 +90,7 @@ impl Packed {
                         texel: 2.0 * radius / res,
                         orthographic: true,
                     });
-                    ([0.0; 3], 0.0, direction, 0.0, irradiance, 0.0)
+                    ([0.0; 3], 0.0, d.to_array(), 0.0, irradiance, 0.0)
                 }
                 Light::Point {
                     position,
@@ -107,8 +107,8 @@ impl Packed {
                     beam_angle_deg,
                 } => {
                     let p = Vec3::from(position);
+                    let d = unit(direction);
                     if cone_angle_deg <= SPOT_MAX_CONE_DEG {
-                        let d = Vec3::from(direction).normalize_or(Vec3::NEG_Y);
                         let half = (cone_angle_deg.max(0.0) + 1.0).to_radians();
                         let view = look_at_mat4(p, p + d, up_for(d));
                         let (near, far) = depth_range(p, lo, hi, radius);
@@ -124,7 +124,7 @@ impl Packed {
                     (
                         position,
                         2.0,
-                        direction,
+                        d.to_array(),
                         cone_angle_deg,
                         intensity,
                         beam_angle_deg,
@@ -172,6 +172,16 @@ impl Packed {
 }
 
 /// An up vector not parallel to `d`.
+/// A light's direction as a unit vector, normalised in f64: the lights
+/// file accepts any finite non-zero direction, and in f32 the squared
+/// length of `[1e30, 0, 0]` overflows and that of `[1e-30, 0, 0]`
+/// underflows (glam's `normalize_or` then gave its fallback, the shader's
+/// `normalize` NaN), where the CPU's f64 definition keeps the direction.
+fn unit(direction: [f32; 3]) -> Vec3 {
+    let d = crate::core::math::normalize(direction.map(f64::from));
+    Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32)
+}
+
 fn up_for(d: Vec3) -> Vec3 {
     if d.y.abs() < 0.99 {
         Vec3::Y
@@ -217,5 +227,52 @@ fn cube(views: &mut Vec<ShadowView>, p: Vec3, lo: Vec3, hi: Vec3, radius: f32, r
             texel: 2.0 * tan_half / res,
             orthographic: false,
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A direction given at any scale packs as the same unit vector and
+    /// the same shadow views as at scale 1, bit for bit (f32 normalisation
+    /// overflowed at 1e30 and underflowed at 1e-30 per component).
+    #[test]
+    fn directions_at_any_scale_pack_the_same() {
+        let (lo, hi) = ([0.0; 3], [10.0, 4.0, 6.0]);
+        let lights = |s: f32| {
+            vec![
+                Light::Directional {
+                    direction: [0.3 * s, -s, 0.2 * s],
+                    irradiance: [1.0; 3],
+                },
+                Light::Spot {
+                    position: [5.0, 3.5, 3.0],
+                    direction: [0.1 * s, -s, -0.2 * s],
+                    intensity: [2.0; 3],
+                    cone_angle_deg: 30.0,
+                    beam_angle_deg: 20.0,
+                },
+                Light::Spot {
+                    position: [5.0, 3.5, 3.0],
+                    direction: [-0.4 * s, -s, 0.0],
+                    intensity: [2.0; 3],
+                    cone_angle_deg: 80.0,
+                    beam_angle_deg: 60.0,
+                },
+            ]
+        };
+        let one = Packed::new(&lights(1.0), lo, hi, 512);
+        // Powers of two, so that the scaled inputs are exact: 2^±100 is
+        // about 1e±30, whose squares leave f32's range.
+        for s in [-100, -70, 70, 100].map(|k| 2f32.powi(k)) {
+            assert_eq!(Packed::new(&lights(s), lo, hi, 512), one, "scale {s}");
+        }
+        // The packed directions are unit vectors.
+        for l in one.lights.chunks(LIGHT_WORDS) {
+            let d = [4, 5, 6].map(|k| f32::from_bits(l[k]));
+            let len = d.iter().map(|v| v * v).sum::<f32>().sqrt();
+            assert!((len - 1.0).abs() < 1e-6, "{d:?}");
+        }
     }
 }
