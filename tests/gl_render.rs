@@ -386,6 +386,50 @@ fn a_frame_with_h_from_the_cpu_shades_that_h() {
     r.delete(gl);
 }
 
+/// More shadow views than the GL's array layers is a clear error naming
+/// the count and the limit, checked before allocating; the renderer then
+/// draws fewer lights (the viewer undoes the change that failed).
+#[test]
+fn too_many_shadow_views_is_a_clear_error_and_the_renderer_goes_on() {
+    let ctx = context();
+    let gl = &ctx.gl;
+    let (rt, config) = cornell();
+    let mut r = GlRenderer::new(
+        gl,
+        &rt,
+        GlOptions {
+            shadow_resolution: 16,
+            ..GlOptions::default()
+        },
+    )
+    .unwrap();
+    // SAFETY: a limit query on the current context.
+    let max =
+        unsafe { glow::HasContext::get_parameter_i32(gl, glow::MAX_ARRAY_TEXTURE_LAYERS) } as usize;
+    let many: Vec<Light> = (0..max / 6 + 1)
+        .map(|i| Light::Point {
+            position: [
+                100.0 + (i % 20) as f32 * 15.0,
+                400.0,
+                100.0 + (i / 20) as f32 * 15.0,
+            ],
+            intensity: [100.0; 3],
+        })
+        .collect();
+    let e = r
+        .frame(gl, &many, &config.emission)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains(&format!("{} views", 6 * many.len()))
+            && e.contains(&format!("{max} array layers")),
+        "{e}"
+    );
+    let ok = r.frame(gl, &config.lights, &config.emission).unwrap();
+    assert!(!ok.unchanged && ok.views > 0);
+    r.delete(gl);
+}
+
 #[test]
 fn gl_cornell_box_wall_next_to_the_red_wall_receives_more_red() {
     let ctx = context();

@@ -41,6 +41,10 @@ pub enum GlError {
     /// A GL call that failed.
     #[error("OpenGL: {0}")]
     Call(String),
+    /// The GPU (or llvmpipe's host memory) could not hold `what`, `bytes`
+    /// bytes: a smaller resolution or fewer lights may fit.
+    #[error("OpenGL: out of memory for {what} ({:.2} GiB)", *bytes as f64 / (1u64 << 30) as f64)]
+    OutOfMemory { what: String, bytes: u64 },
 }
 
 /// The sources concatenated after the version line and `#define NAME

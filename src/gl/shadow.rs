@@ -90,6 +90,19 @@ impl ShadowMaps {
     /// (Re)allocates the depth array with `layers` layers.
     fn allocate(&mut self, gl: &glow::Context, layers: usize) -> Result<(), GlError> {
         let r = self.resolution as i32;
+        let what = || {
+            format!(
+                "the shadow maps: {layers} views of {r}² depth texels (points and wide spots take 6 views, other lights 1)"
+            )
+        };
+        // SAFETY: a limit query on the current context.
+        let max = unsafe { gl.get_parameter_i32(glow::MAX_ARRAY_TEXTURE_LAYERS) };
+        if layers > max.max(1) as usize {
+            return Err(GlError::Unsupported(format!(
+                "{}: more than this OpenGL's {max} array layers",
+                what()
+            )));
+        }
         // SAFETY: texture storage of r × r × layers depth texels on the
         // current context.
         unsafe {
@@ -107,7 +120,22 @@ impl ShadowMaps {
             p(glow::TEXTURE_COMPARE_FUNC, glow::LEQUAL);
             self.texture = t;
             self.layers = layers;
-            super::check(gl, "allocating the shadow maps")
+            match gl.get_error() {
+                glow::NO_ERROR => Ok(()),
+                glow::OUT_OF_MEMORY => {
+                    // Nothing usable was allocated: the next frame tries
+                    // again from one layer.
+                    self.layers = 0;
+                    Err(GlError::OutOfMemory {
+                        what: what(),
+                        bytes: 4 * (r as u64).pow(2) * layers as u64,
+                    })
+                }
+                code => Err(GlError::Call(format!(
+                    "allocating {}: GL error 0x{code:x}",
+                    what()
+                ))),
+            }
         }
     }
 

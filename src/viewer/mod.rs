@@ -162,6 +162,11 @@ struct App {
     /// frame in milliseconds (CPU only).
     patch_light: PatchLight,
     cpu_ms: f64,
+    /// The last lights and emission that drew.
+    good_lights: Option<(
+        Vec<crate::core::scene_config::Light>,
+        std::collections::BTreeMap<String, f32>,
+    )>,
     drag: Option<MouseButton>,
     cursor: Option<(f64, f64)>,
     screenshot_due: bool,
@@ -209,6 +214,7 @@ pub fn run(rt: Runtime, cfg: ViewerConfig) -> Result<ViewerReport, ViewerError> 
         modifiers: ModifiersState::empty(),
         patch_light: PatchLight::Auto,
         cpu_ms: 0.0,
+        good_lights: None,
         drag: None,
         cursor: None,
         screenshot_due: false,
@@ -354,12 +360,12 @@ impl App {
         Ok(())
     }
 
-    fn draw(&mut self) -> Result<(), ViewerError> {
+    /// The frame's patch light where it was chosen to run, and the shadow
+    /// maps (nothing when the lights did not change).
+    fn light_frame(&mut self) -> Result<(), GlError> {
         let Some(state) = self.state.as_mut() else {
             return Ok(());
         };
-        let size = state.window.inner_size();
-        let (w, h) = (size.width.max(1) as usize, size.height.max(1) as usize);
         let gl = &state.gl;
         if self.patch_light == PatchLight::Cpu {
             let fs = self.rt.frame(&self.lights.lights, &self.lights.emission);
@@ -377,6 +383,39 @@ impl App {
                 .renderer
                 .frame(gl, &self.lights.lights, &self.lights.emission)?;
         }
+        Ok(())
+    }
+
+    fn draw(&mut self) -> Result<(), ViewerError> {
+        let Some(state) = self.state.as_mut() else {
+            return Ok(());
+        };
+        let size = state.window.inner_size();
+        let (w, h) = (size.width.max(1) as usize, size.height.max(1) as usize);
+        if let Err(e) = self.light_frame() {
+            // A light added beyond what the shadow maps can hold: say so
+            // and go back to the last lights that drew, instead of ending
+            // the session.
+            let recoverable = matches!(e, GlError::OutOfMemory { .. } | GlError::Unsupported(_));
+            match self.good_lights.clone() {
+                Some((lights, emission)) if recoverable && lights != self.lights.lights => {
+                    eprintln!("{e}: the last change is undone");
+                    self.lights.lights = lights;
+                    self.lights.emission = emission;
+                    self.lights.selected = self
+                        .lights
+                        .selected
+                        .min(self.lights.lights.len().saturating_sub(1));
+                    self.light_frame()?;
+                }
+                _ => return Err(e.into()),
+            }
+        }
+        self.good_lights = Some((self.lights.lights.clone(), self.lights.emission.clone()));
+        let Some(state) = self.state.as_mut() else {
+            return Ok(());
+        };
+        let gl = &state.gl;
         let camera = self.camera.camera();
         state
             .renderer
