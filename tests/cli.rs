@@ -572,3 +572,53 @@ fn info_finds_the_scene_from_another_directory() {
         "{text}"
     );
 }
+
+/// `bench frame` runs to the end on a small bake and prints every table
+/// the README quotes: the CPU stages, the gather's share of the measured
+/// bandwidth, the GL frame with both patch lights, and classic radiosity
+/// with its error against the exact `T_∞ B0` (so a benchmark that breaks
+/// shows here, not in the next README update).
+#[test]
+fn bench_frame_prints_its_tables() {
+    let dir = common::temp_dir("cli-bench-frame");
+    let src = common::bundled("cornell_box");
+    for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
+        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
+    }
+    let rad = dir.join("cb.rad");
+    let o = radiosity(&[
+        "bake",
+        dir.join("cornell_box.obj").to_str().unwrap(),
+        "--patches",
+        "300",
+        "-o",
+        rad.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = radiosity(&[
+        "bench",
+        "frame",
+        rad.to_str().unwrap(),
+        "--repeat",
+        "1",
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    for row in [
+        "| frame, nothing reused |",
+        "| gather, every column |",
+        "% of bandwidth",
+        "| gather, one spot light",
+        "GL frame on",
+        "| H from the CPU run time (`view --patch-light cpu`) |",
+        "+ the CPU frame",
+        "| classic, 3 bounces |",
+        "| classic ∞ (Jacobi",
+    ] {
+        assert!(out.contains(row), "no {row:?} in:\n{out}");
+    }
+}
