@@ -695,8 +695,14 @@ fn gl_frame_table(
         Err(e) => return writeln!(out, "\nGL frame not run: {e}"),
     };
     let size = (options.width, options.height);
-    let frame = |r: &mut GlRenderer| -> Result<(), crate::gl::GlError> {
-        r.frame(gl, &config.lights, &config.emission)?;
+    // A frame (its patch light on GL, or `H` from the CPU run time: the
+    // viewer's `--patch-light cpu`), the image drawn, to `glFinish`.
+    let frame_from = |r: &mut GlRenderer, cpu_h: bool| -> Result<(), crate::gl::GlError> {
+        if cpu_h {
+            r.frame_with_h(gl, &config.lights, &config.emission, rt.h())?;
+        } else {
+            r.frame(gl, &config.lights, &config.emission)?;
+        }
         r.draw(
             gl,
             &config.camera,
@@ -708,13 +714,13 @@ fn gl_frame_table(
         unsafe { gl.finish() };
         Ok(())
     };
-    let (res, t_frame) = best(options.repeat, || frame(&mut r));
+    let (res, t_frame) = best(options.repeat, || frame_from(&mut r, false));
     if let Err(e) = res {
         return writeln!(out, "\nGL frame failed: {e}");
     }
     let passes = r.pass_times(gl, true);
     r.options.skip_columns = false;
-    let (_, t_all) = best(options.repeat, || frame(&mut r));
+    let (_, t_all) = best(options.repeat, || frame_from(&mut r, false));
     let passes_all = r.pass_times(gl, true);
     r.options.skip_columns = true;
     r.options.cache = true;
@@ -722,22 +728,9 @@ fn gl_frame_table(
     let (_, t_unchanged) = best(options.repeat, || {
         let _ = r.frame(gl, &config.lights, &config.emission);
     });
-    // The viewer's `--patch-light cpu`: `H` from the CPU run time (its
-    // frame timed above), uploaded; shadow maps and shading on GL.
+    // `H` from the CPU run time (its frame timed above), uploaded.
     r.options.cache = false;
-    let (res, t_with_h) = best(options.repeat, || -> Result<(), crate::gl::GlError> {
-        r.frame_with_h(gl, &config.lights, &config.emission, rt.h())?;
-        r.draw(
-            gl,
-            &config.camera,
-            crate::runtime::render::View::Final,
-            size,
-            &config.emission,
-        )?;
-        // SAFETY: waits for the GPU on the current context.
-        unsafe { gl.finish() };
-        Ok(())
-    });
+    let (res, t_with_h) = best(options.repeat, || frame_from(&mut r, true));
     if let Err(e) = res {
         return writeln!(out, "\nGL frame with H from the CPU failed: {e}");
     }

@@ -197,6 +197,7 @@ pub fn run(rt: Runtime, cfg: ViewerConfig) -> Result<ViewerReport, ViewerError> 
         .filter(|m| m.emission.iter().any(|&e| e > 0.0))
         .map(|m| m.name.clone())
         .collect();
+    let patch_light = cfg.patch_light;
     let mut app = App {
         camera: CameraRig::new(&cfg.config.camera),
         lights: LightRig::new(&cfg.config, diagonal, emissive),
@@ -212,14 +213,13 @@ pub fn run(rt: Runtime, cfg: ViewerConfig) -> Result<ViewerReport, ViewerError> 
         fps_start: Instant::now(),
         fps: 0.0,
         modifiers: ModifiersState::empty(),
-        patch_light: PatchLight::Auto,
+        patch_light,
         cpu_ms: 0.0,
         good_lights: None,
         drag: None,
         cursor: None,
         screenshot_due: false,
     };
-    app.patch_light = app.cfg.patch_light;
     if app.cfg.frames.is_none() {
         eprintln!("{HELP}");
     }
@@ -324,29 +324,24 @@ impl App {
             unsafe { glow::HasContext::finish(gl) };
             Ok::<f64, ViewerError>(1e3 * t.elapsed().as_secs_f64())
         };
-        // Alternating the two kinds of frame makes each recompute.
-        let mut gpu_ms = f64::MAX;
-        let mut cpu_ms = f64::MAX;
-        for round in 0..2 {
-            let g = timed(&mut || {
-                renderer.frame(gl, lights, scales)?;
-                Ok(())
-            })?;
-            if round == 1 {
-                gpu_ms = g;
-            }
-            let rt = &mut self.rt;
-            let c = timed(&mut || {
-                // Only the first CPU frame computes (the run time keeps
-                // what did not change); it is the one timed.
-                rt.frame(lights, scales);
-                renderer.frame_with_h(gl, lights, scales, rt.h())?;
-                Ok(())
-            })?;
-            if round == 0 {
-                cpu_ms = c;
-            }
-        }
+        // GL's frame twice (the first compiles and warms up), the CPU's
+        // once (its first computes every term; later ones reuse what did
+        // not change); a frame of the other kind between two makes each
+        // recompute.
+        timed(&mut || {
+            renderer.frame(gl, lights, scales)?;
+            Ok(())
+        })?;
+        let rt = &mut self.rt;
+        let cpu_ms = timed(&mut || {
+            rt.frame(lights, scales);
+            renderer.frame_with_h(gl, lights, scales, rt.h())?;
+            Ok(())
+        })?;
+        let gpu_ms = timed(&mut || {
+            renderer.frame(gl, lights, scales)?;
+            Ok(())
+        })?;
         self.patch_light = if cpu_ms < gpu_ms {
             PatchLight::Cpu
         } else {
