@@ -470,6 +470,76 @@ fn emission_scales_per_material_and_reproduces_the_stored_emission() {
     assert!(rt.h().iter().all(|c| c.iter().all(|&v| v == 0.0)));
 }
 
+/// More lights than the term cache holds (`RuntimeOptions::
+/// term_cache_bytes`, here three terms' worth for seven lights): lights
+/// share terms in threes, `H` is the one-light-per-term `H` within f32
+/// rounding, and a moved light recomputes only its group.
+#[test]
+fn lights_beyond_the_term_budget_share_terms() {
+    use radiosity::runtime::{lights_per_term, TERM_BYTES_PER_PATCH};
+    let src = common::bundled("cornell_box");
+    let dir = common::temp_dir("rt-groups");
+    for f in ["cornell_box.obj", "cornell_box.mtl"] {
+        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
+    }
+    let (single, _) = bake(
+        &dir.join("cornell_box.obj"),
+        Resolution::VoxelSize(60.0),
+        CodecKind::default(),
+    );
+    let n = single.n();
+    let budget = 3 * TERM_BYTES_PER_PATCH * n;
+    assert_eq!(lights_per_term(7, n, budget), 3);
+    assert_eq!(lights_per_term(3, n, budget), 1);
+    assert_eq!(lights_per_term(0, n, budget), 1);
+    assert_eq!(lights_per_term(5, n, 0), 5, "at least one term");
+    let mut grouped = Runtime::new(
+        single.baked.clone(),
+        single.scene.clone(),
+        RuntimeOptions {
+            term_cache_bytes: budget,
+            ..RuntimeOptions::default()
+        },
+    );
+    let mut single = single;
+    let mut lights: Vec<Light> = (0..7)
+        .map(|i| point([80.0 + 60.0 * i as f32, 450.0, 279.0], 5000.0))
+        .collect();
+    let none = BTreeMap::new();
+    let s = grouped.frame(&lights, &none);
+    assert_eq!(
+        (s.terms_computed, s.terms_reused),
+        (4, 0),
+        "emission and 3 groups"
+    );
+    single.frame(&lights, &none);
+    // The same products of non-negative terms summed in other groupings:
+    // each within γ_n and a few roundings of the exact H (Higham §3.1).
+    let u = f32::EPSILON as f64 / 2.0;
+    let bound = 2.0 * (n as f64 * u / (1.0 - n as f64 * u) + 16.0 * u);
+    let close = |a: &[Vec<f32>; 3], b: &[Vec<f32>; 3], what: &str| {
+        for c in 0..3 {
+            for j in 0..n {
+                let (x, y) = (a[c][j] as f64, b[c][j] as f64);
+                assert!(
+                    (x - y).abs() <= bound * y.abs() + 1e-30,
+                    "{what}: H[{c}][{j}] {x} grouped against {y}"
+                );
+            }
+        }
+    };
+    close(grouped.h(), single.h(), "first frame");
+    lights[4] = point([300.0, 200.0, 150.0], 8000.0);
+    let s = grouped.frame(&lights, &none);
+    assert_eq!(
+        (s.terms_computed, s.terms_reused),
+        (1, 3),
+        "only the moved light's group"
+    );
+    single.frame(&lights, &none);
+    close(grouped.h(), single.h(), "after a move");
+}
+
 /// `examples/embed.rs`, the README's embedding example, run here.
 #[path = "../examples/embed.rs"]
 mod embed;

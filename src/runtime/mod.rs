@@ -23,7 +23,10 @@
 //! computed. Every term is a fresh product, never an accumulation of
 //! differences, so there is no drift over many frames: after any sequence
 //! of changes `H` equals a full gather of the total `B0` up to the f32
-//! rounding of the sum of terms.
+//! rounding of the sum of terms. Each term keeps `D`, `B0` and `H` (36
+//! bytes a patch); beyond [`RuntimeOptions::term_cache_bytes`] (512 MiB:
+//! 3,640 lights at 4,096 patches, 227 at 65,535) consecutive lights share
+//! a term, and a moved light recomputes its group.
 //!
 //! Evaluating `H` at pixels ([`surface`]) and shading them ([`render`],
 //! [`tonemap`]) complete the frame.
@@ -64,6 +67,26 @@ pub struct RuntimeOptions {
     /// Apply the bake's near-field correction ([`near_field`]; off only
     /// to measure what it does). Read when the run time is made.
     pub near_field: bool,
+    /// Bytes the cached light terms may take: each term keeps `D`, `B0`
+    /// and `H` (36 bytes a patch). With more lights than fit, consecutive
+    /// lights share a term ([`lights_per_term`]), so that a lights file of
+    /// thousands of lights cannot exhaust the memory; moving one light then
+    /// recomputes its group.
+    pub term_cache_bytes: usize,
+}
+
+/// Bytes of one cached term per patch: `D`, `B0` and `H`, three f32
+/// channels each.
+pub const TERM_BYTES_PER_PATCH: usize = 36;
+
+/// Lights per term for `lights` lights on `n` patches within `budget`
+/// bytes of cached terms (module doc): 1 while every light's term fits,
+/// else the fewest that keep the terms within the budget (at least one
+/// term is always kept).
+pub fn lights_per_term(lights: usize, n: usize, budget: usize) -> usize {
+    let per_term = TERM_BYTES_PER_PATCH.saturating_mul(n.max(1));
+    let terms = (budget / per_term).max(1);
+    lights.div_ceil(terms).max(1)
 }
 
 impl Default for RuntimeOptions {
@@ -74,6 +97,7 @@ impl Default for RuntimeOptions {
             cache: true,
             simd: true,
             near_field: true,
+            term_cache_bytes: 512 << 20,
         }
     }
 }
@@ -103,7 +127,8 @@ pub struct FrameStats {
 /// One cached term of `H`.
 #[derive(Clone, Debug)]
 struct Term {
-    light: Option<Light>,
+    /// The lights it holds (none for the emission term).
+    lights: Vec<Light>,
     /// `D` of this light (zero for the emission term).
     d: [Vec<f32>; 3],
     b0: [Vec<f32>; 3],
@@ -280,7 +305,9 @@ impl Runtime {
         let groups = n.div_ceil(4);
         let mut stats = FrameStats::default();
         let cache = self.options.cache;
-        let mut changed = !cache || self.frames == 0 || self.terms.len() != lights.len();
+        let per_term = lights_per_term(lights.len(), n, self.options.term_cache_bytes);
+        let mut changed =
+            !cache || self.frames == 0 || self.terms.len() != lights.len().div_ceil(per_term);
 
         // Emission.
         let emission_ok = cache
@@ -301,7 +328,7 @@ impl Runtime {
             self.emission_term = Some((
                 scales.clone(),
                 Term {
-                    light: None,
+                    lights: Vec::new(),
                     d: std::array::from_fn(|_| vec![0.0; n]),
                     b0: e,
                     h,
@@ -310,25 +337,16 @@ impl Runtime {
         }
 
         // Lights.
-        self.terms.truncate(lights.len());
-        for (i, light) in lights.iter().enumerate() {
-            if cache
-                && self
-                    .terms
-                    .get(i)
-                    .is_some_and(|t| t.light.as_ref() == Some(light))
-            {
+        self.terms.truncate(lights.len().div_ceil(per_term));
+        for (i, group) in lights.chunks(per_term).enumerate() {
+            if cache && self.terms.get(i).is_some_and(|t| t.lights == group) {
                 stats.terms_reused += 1;
                 continue;
             }
             changed = true;
             let t0 = Instant::now();
-            let (d_points, d) = direct::irradiance(
-                &self.baked,
-                &self.direct,
-                std::slice::from_ref(light),
-                self.options.samples,
-            );
+            let (d_points, d) =
+                direct::irradiance(&self.baked, &self.direct, group, self.options.samples);
             stats.seconds_direct += t0.elapsed().as_secs_f64();
             let b0 = direct::reflected(&self.baked, &d);
             let t0 = Instant::now();
@@ -340,7 +358,7 @@ impl Runtime {
             add_gather(&mut stats, &g, active, groups);
             stats.terms_computed += 1;
             let term = Term {
-                light: Some(light.clone()),
+                lights: group.to_vec(),
                 d,
                 b0,
                 h,
