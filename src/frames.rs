@@ -146,13 +146,7 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
         bail!("--samples {}: expected 1..=16", args.samples);
     }
     check_exposure(args.exposure)?;
-    if args.width == 0 || args.height == 0 || args.width * args.height > 1 << 26 {
-        bail!(
-            "--width {} --height {}: the image must have between 1 and 2^26 pixels",
-            args.width,
-            args.height
-        );
-    }
+    check_image_size(args.width, args.height)?;
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("creating the output directory {}", dir.display()))?;
@@ -343,6 +337,17 @@ pub(crate) fn write_png(
     )?;
     write_atomic(path, &bytes, None).with_context(|| format!("writing {}", path.display()))?;
     Ok(exposure)
+}
+
+/// An image of `width × height` pixels must have between 1 and 2^26
+/// (8192²: 0.8 GB of linear radiance), the product taken without overflow.
+pub(crate) fn check_image_size(width: usize, height: usize) -> anyhow::Result<()> {
+    match width.checked_mul(height) {
+        Some(p) if (1..=1 << 26).contains(&p) => Ok(()),
+        _ => bail!(
+            "--width {width} --height {height}: the image must have between 1 and 2^26 pixels"
+        ),
+    }
 }
 
 /// A fixed exposure must scale radiance to something displayable: a

@@ -1003,9 +1003,10 @@ fn bench_frame(
     device: DeviceArgs,
 ) -> anyhow::Result<()> {
     use radiosity::bakefile::baked::{resolve_scene_path, Baked};
-    if repeat == 0 || width == 0 || height == 0 {
-        bail!("--repeat, --width and --height must be at least 1");
+    if repeat == 0 {
+        bail!("--repeat must be at least 1");
     }
+    frames::check_image_size(width, height)?;
     let info = Baked::load(bake)?.info;
     let config = frames::camera_lights(
         camera_lights_file,

@@ -418,6 +418,31 @@ fn render_bakes_or_reuses_and_writes_png_and_pfm() {
     let o = run(&["--samples", "0"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("--samples"), "{}", stderr(&o));
+    // An image whose pixel count overflows (2^32 × 2^32 wrapped to 0 and
+    // passed the check, then a row took 48 GB) or exceeds 2^26 is refused
+    // (before any bake).
+    for size in [
+        ["4294967296", "4294967296"],
+        ["100000", "100000"],
+        ["0", "10"],
+    ] {
+        let o = radiosity(&[
+            "render",
+            obj.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--width",
+            size[0],
+            "--height",
+            size[1],
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{size:?}");
+        assert!(
+            stderr(&o).contains("2^26 pixels"),
+            "{size:?}: {}",
+            stderr(&o)
+        );
+    }
     // A fixed exposure that is not a positive finite factor would write a
     // black or white image; it is refused, negative numbers included
     // (given as a value, not taken for a flag).
@@ -608,6 +633,17 @@ fn bench_frame_prints_its_tables() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
+    let o = radiosity(&[
+        "bench",
+        "frame",
+        rad.to_str().unwrap(),
+        "--width",
+        "4294967296",
+        "--height",
+        "4294967296",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("2^26 pixels"), "{}", stderr(&o));
     for row in [
         "| frame, nothing reused |",
         "| gather, every column |",

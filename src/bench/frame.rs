@@ -23,9 +23,7 @@
 use super::{fma_peak, memory_bandwidth_triad};
 use crate::bake::form_factor::{of_voxelization, FormFactorOptions};
 use crate::bake::voxelize::voxelize_at;
-use crate::bakefile::baked::{resolve_scene_path, Baked};
 use crate::core::compute::{Backend, DeviceSelection, Gpu};
-use crate::core::scene;
 use crate::core::scene_config::SceneConfig;
 use crate::runtime::gather::{ActiveColumns, GatherStats};
 use crate::runtime::render::{render, View};
@@ -378,10 +376,8 @@ pub fn run(
     options: &FrameBenchOptions,
 ) -> anyhow::Result<String> {
     let mut out = String::new();
-    let baked = Baked::load(path)?;
-    let scene_path = resolve_scene_path(path, &baked.info.scene);
-    let scene = scene::load(&scene_path)
-        .with_context(|| format!("loading the scene {}", scene_path.display()))?;
+    // The bake and the scene it was made from, checked to be that scene.
+    let (baked, scene, _) = crate::runtime::open::load_checked(path, None)?;
     let n = baked.patches.len();
     let bytes_matrix = baked.matrix.bytes_total();
     writeln!(
