@@ -529,7 +529,7 @@ struct BakeArgs {
     #[arg(long, value_name = "E", allow_negative_numbers = true)]
     max_error: Option<f64>,
     /// Seeded random lights the compression error is measured over (0: do
-    /// not measure).
+    /// not measure; at most 4096).
     #[arg(long, value_name = "N", default_value_t = bake::DEFAULT_ERROR_LIGHTS)]
     error_lights: usize,
     /// Patches on both sides of every surface, for scenes whose faces are

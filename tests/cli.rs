@@ -318,6 +318,15 @@ fn bad_options_and_devices_are_refused() {
     }
     let o = radiosity(&["bake", p, "--patches", "0"]);
     assert_eq!(o.status.code(), Some(1));
+    // Error lights each keep B0 through the compression search: a count
+    // that would fill the memory is refused before the bake.
+    let o = radiosity(&["bake", p, "--error-lights", "100000000"]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("--error-lights") && e.contains("4096") && !e.contains("[bake]"),
+        "{e}"
+    );
     let o = radiosity(&["bake", p, "--near-field-rays", "70000"]);
     assert_eq!(o.status.code(), Some(1));
     let e = stderr(&o);

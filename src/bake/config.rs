@@ -52,6 +52,12 @@ pub const ERROR_LIGHTS_SEED: u64 = 1;
 /// Default number of those lights.
 pub const DEFAULT_ERROR_LIGHTS: usize = 64;
 
+/// Most error lights a bake takes: each keeps its `B0` (12 bytes a patch)
+/// through the compression search, so 4,096 at 16k patches hold 0.8 GB
+/// (under a tenth of the bake's own n² matrices); the error's sampling
+/// noise is then an eighth of the default's.
+pub const MAX_ERROR_LIGHTS: usize = 4096;
+
 /// The validated options of one bake.
 #[derive(Clone, Debug, Serialize)]
 pub struct BakeConfig {
@@ -148,6 +154,15 @@ impl BakeConfig {
                 })
             }
             _ => {}
+        }
+        if self.error_lights > MAX_ERROR_LIGHTS {
+            return Err(BakeError::InvalidOption {
+                option: "error lights",
+                value: self.error_lights.to_string(),
+                expected: format!(
+                    "at most {MAX_ERROR_LIGHTS} (each keeps B0 on every patch, 12 bytes a patch, for the whole compression search)"
+                ),
+            });
         }
         match self.codec {
             CodecChoice::Fixed(kind) => kind.validate()?,
