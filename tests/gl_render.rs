@@ -388,7 +388,8 @@ fn a_frame_with_h_from_the_cpu_shades_that_h() {
 
 /// More shadow views than the GL's array layers is a clear error naming
 /// the count and the limit, checked before allocating; the renderer then
-/// draws fewer lights (the viewer undoes the change that failed).
+/// draws the earlier lights again, recomputed (the viewer undoes the change
+/// that failed).
 #[test]
 fn too_many_shadow_views_is_a_clear_error_and_the_renderer_goes_on() {
     let ctx = context();
@@ -406,6 +407,11 @@ fn too_many_shadow_views_is_a_clear_error_and_the_renderer_goes_on() {
     // SAFETY: a limit query on the current context.
     let max =
         unsafe { glow::HasContext::get_parameter_i32(gl, glow::MAX_ARRAY_TEXTURE_LAYERS) } as usize;
+    assert!(
+        !r.frame(gl, &config.lights, &config.emission)
+            .unwrap()
+            .unchanged
+    );
     let many: Vec<Light> = (0..max / 6 + 1)
         .map(|i| Light::Point {
             position: [
@@ -425,6 +431,8 @@ fn too_many_shadow_views_is_a_clear_error_and_the_renderer_goes_on() {
             && e.contains(&format!("{max} array layers")),
         "{e}"
     );
+    // The lights of the frame before the failure again: the failed frame
+    // replaced the lights' buffers, so this one must recompute.
     let ok = r.frame(gl, &config.lights, &config.emission).unwrap();
     assert!(!ok.unchanged && ok.views > 0);
     r.delete(gl);

@@ -355,6 +355,11 @@ impl GlRenderer {
     /// The lights packed and uploaded, and their shadow maps rendered (the
     /// shading pass's direct light reads them); returns the views drawn.
     fn shadow_maps(&mut self, gl: &glow::Context, lights: &[Light]) -> Result<usize, GlError> {
+        // The buffers now change: until this frame completes, no earlier
+        // frame's lights describe them (a frame that fails here, say with
+        // too many shadow views, must not leave the next frame of the
+        // earlier lights believing nothing changed).
+        self.last = None;
         let res = self.shadows.resolution;
         self.packed = Packed::new(lights, self.scene.lo, self.scene.hi, res);
         fill_buffer(
