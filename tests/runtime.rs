@@ -563,6 +563,14 @@ fn an_application_opens_a_bake_lights_it_and_reads_light_at_points() {
     let frames = embed::run(&rad, 4).expect("the example runs");
     assert_eq!(frames.len(), 4);
     let opened = Runtime::open(&rad, None, RuntimeOptions::default()).unwrap();
+    // Rays that are not rays meet nothing; a triangle that does not exist
+    // has no indirect light.
+    assert_eq!(opened.first_hit([278.0, 273.0, 279.0], [0.0; 3]), None);
+    assert_eq!(
+        opened.first_hit([f64::NAN, 273.0, 279.0], [0.0, -1.0, 0.0]),
+        None
+    );
+    assert_eq!(opened.indirect_at(usize::MAX, [0.0; 3]), [0.0; 3]);
     for (k, f) in frames.iter().enumerate() {
         let expect = if k == 0 { (2, 0) } else { (1, 1) };
         assert_eq!((f.terms_computed, f.terms_reused), expect, "frame {k}");

@@ -92,11 +92,15 @@ impl Runtime {
     /// as loaded) and the point hit. A back face (the side opposite the
     /// winding, which receives and emits nothing) ends the ray with `None`,
     /// as it is black in the renderers; in a two-sided bake its coincident
-    /// twin faces the ray and is returned.
+    /// twin faces the ray and is returned. A zero or non-finite direction
+    /// or origin meets nothing.
     pub fn first_hit(&self, origin: [f64; 3], direction: [f64; 3]) -> Option<(usize, [f64; 3])> {
         use crate::core::math::{add, dot, normalize, scale};
         let far = 4.0 * self.direct.far();
         let d = normalize(direction);
+        if !(d.iter().chain(&origin).all(|v| v.is_finite())) {
+            return None; // a zero or non-finite direction, or origin
+        }
         let (k, t) = self.direct.closest_hit(origin, scale(d, far))?;
         let mut tri = self.direct.bvh().order[k as usize] as usize;
         if dot(self.scene.triangle_normal(tri), d) >= 0.0 {
