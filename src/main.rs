@@ -377,7 +377,8 @@ struct RenderArgs {
     height: usize,
     /// cpu (the reference renderer: ray casting), gl (OpenGL 4.5 through
     /// EGL, headless: shadow maps, the gather in a compute shader), or auto
-    /// (gl when a context can be made, else cpu).
+    /// (gl on a GPU; cpu where GL is software, such as llvmpipe, or no
+    /// context can be made).
     #[arg(long, default_value = "cpu")]
     backend: String,
     /// Shadow map side in texels (gl).

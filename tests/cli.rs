@@ -420,6 +420,16 @@ fn render_bakes_or_reuses_and_writes_png_and_pfm() {
     let o = run(&["--view", "indirect"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("reusing"), "{}", stderr(&o));
+    // `auto` renders on GL where GL runs on a GPU, on the CPU where GL is
+    // software (llvmpipe here) and says so.
+    let o = run(&["--backend", "auto"]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    if e.contains("OpenGL is software") {
+        assert!(e.contains("\ncpu: ") && !e.contains("\ngl ("), "{e}");
+    } else {
+        assert!(e.contains("gl (") || e.contains("no OpenGL context"), "{e}");
+    }
     // Bad options name the flag.
     let o = run(&["--view", "sideways"]);
     assert_eq!(o.status.code(), Some(1));

@@ -107,3 +107,39 @@ impl Headless {
         unsafe { self.gl.get_parameter_string(glow::RENDERER) }
     }
 }
+
+/// Whether a `GL_RENDERER` string names a software rasterizer (Mesa's
+/// llvmpipe, softpipe and swrast, Google's SwiftShader): GL that runs on
+/// the CPU's cores, where the CPU run time and renderer are faster.
+pub fn is_software(renderer: &str) -> bool {
+    let r = renderer.to_ascii_lowercase();
+    ["llvmpipe", "softpipe", "swrast", "swiftshader"]
+        .iter()
+        .any(|s| r.contains(s))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::is_software;
+
+    /// The renderer strings of the software rasterizers, as their drivers
+    /// report them, and of hardware ones.
+    #[test]
+    fn software_renderers_are_recognised() {
+        for r in [
+            "llvmpipe (LLVM 15.0.6, 256 bits)",
+            "softpipe",
+            "Mesa X11 swrast",
+            "Google SwiftShader",
+        ] {
+            assert!(is_software(r), "{r}");
+        }
+        for r in [
+            "NVIDIA H200/PCIe/SSE2",
+            "AMD Radeon RX 7900 XTX (radeonsi, navi31, LLVM 17.0.6, DRM 3.54)",
+            "Mesa Intel(R) UHD Graphics 630 (CFL GT2)",
+        ] {
+            assert!(!is_software(r), "{r}");
+        }
+    }
+}
