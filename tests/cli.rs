@@ -624,15 +624,11 @@ fn info_finds_the_scene_from_another_directory() {
 /// shows here, not in the next README update).
 #[test]
 fn bench_frame_prints_its_tables() {
-    let dir = common::temp_dir("cli-bench-frame");
-    let src = common::bundled("cornell_box");
-    for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
-        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
-    }
-    let rad = dir.join("cb.rad");
+    let obj = common::bundled_copy("cornell_box", "cli-bench-frame");
+    let rad = obj.with_file_name("cb.rad");
     let o = radiosity(&[
         "bake",
-        dir.join("cornell_box.obj").to_str().unwrap(),
+        obj.to_str().unwrap(),
         "--patches",
         "300",
         "-o",

@@ -216,16 +216,8 @@ fn a_light_outside_a_closed_room_changes_nothing_inside_bit_for_bit() {
 
 #[test]
 fn incremental_frames_equal_a_full_product_after_100_light_moves() {
-    let obj = common::bundled("cornell_box");
-    let dir = common::temp_dir("rt-incr");
-    for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
-        std::fs::copy(obj.with_file_name(f), dir.join(f)).unwrap();
-    }
-    let (with_near, _) = bake(
-        &dir.join("cornell_box.obj"),
-        Resolution::VoxelSize(60.0),
-        CodecKind::default(),
-    );
+    let obj = common::bundled_copy("cornell_box", "rt-incr");
+    let (with_near, _) = bake(&obj, Resolution::VoxelSize(60.0), CodecKind::default());
     assert!(
         !with_near.near.is_empty(),
         "the bake has a near-field correction"
@@ -301,12 +293,8 @@ fn incremental_frames_equal_a_full_product_after_100_light_moves() {
 
 #[test]
 fn cornell_box_wall_next_to_the_red_wall_receives_more_red_on_pixels() {
-    let src = common::bundled("cornell_box");
-    let dir = common::temp_dir("rt-cornell");
-    for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
-        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
-    }
-    let obj = dir.join("cornell_box.obj");
+    let obj = common::bundled_copy("cornell_box", "rt-cornell");
+    let dir = obj.parent().unwrap().to_path_buf();
     let (mut rt, _) = bake(&obj, Resolution::VoxelSize(40.0), CodecKind::default());
     let config = scene_config::load(&dir.join("cornell_box.json")).unwrap();
     rt.frame(&config.lights, &config.emission);
@@ -431,16 +419,8 @@ fn a_wall_of_two_triangles_shows_a_smooth_gradient_of_indirect_light() {
 
 #[test]
 fn emission_scales_per_material_and_reproduces_the_stored_emission() {
-    let src = common::bundled("cornell_box");
-    let dir = common::temp_dir("rt-emission");
-    for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
-        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
-    }
-    let (mut rt, _) = bake(
-        &dir.join("cornell_box.obj"),
-        Resolution::VoxelSize(60.0),
-        CodecKind::default(),
-    );
+    let obj = common::bundled_copy("cornell_box", "rt-emission");
+    let (mut rt, _) = bake(&obj, Resolution::VoxelSize(60.0), CodecKind::default());
     let n = rt.n();
     let e = rt.emission.exitance(n, &BTreeMap::new());
     for (j, p) in rt.baked.patches.iter().enumerate() {
@@ -477,16 +457,8 @@ fn emission_scales_per_material_and_reproduces_the_stored_emission() {
 #[test]
 fn lights_beyond_the_term_budget_share_terms() {
     use radiosity::runtime::{lights_per_term, TERM_BYTES_PER_PATCH};
-    let src = common::bundled("cornell_box");
-    let dir = common::temp_dir("rt-groups");
-    for f in ["cornell_box.obj", "cornell_box.mtl"] {
-        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
-    }
-    let (single, _) = bake(
-        &dir.join("cornell_box.obj"),
-        Resolution::VoxelSize(60.0),
-        CodecKind::default(),
-    );
+    let obj = common::bundled_copy("cornell_box", "rt-groups");
+    let (single, _) = bake(&obj, Resolution::VoxelSize(60.0), CodecKind::default());
     let n = single.n();
     let budget = 3 * TERM_BYTES_PER_PATCH * n;
     assert_eq!(lights_per_term(7, n, budget), 3);
@@ -553,12 +525,8 @@ mod embed;
 /// naming what changed, in the library and on the command line.
 #[test]
 fn an_application_opens_a_bake_lights_it_and_reads_light_at_points() {
-    let src = common::bundled("cornell_box");
-    let dir = common::temp_dir("rt-embed");
-    for f in ["cornell_box.obj", "cornell_box.mtl"] {
-        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
-    }
-    let obj = dir.join("cornell_box.obj");
+    let obj = common::bundled_copy("cornell_box", "rt-embed");
+    let dir = obj.parent().unwrap().to_path_buf();
     let (_, rad) = bake(&obj, Resolution::VoxelSize(60.0), CodecKind::default());
     let frames = embed::run(&rad, 4).expect("the example runs");
     assert_eq!(frames.len(), 4);

@@ -106,6 +106,20 @@ pub fn bundled(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("scenes/{name}/{name}.obj"))
 }
 
+/// The bundled scene `name` (its OBJ, MTL and camera/lights file) copied
+/// into a fresh temporary directory tagged `tag`, for tests that bake
+/// beside it or edit it; returns the copied OBJ's path.
+pub fn bundled_copy(name: &str, tag: &str) -> PathBuf {
+    let src = bundled(name);
+    let dir = temp_dir(tag);
+    for ext in ["obj", "mtl", "json"] {
+        let f = format!("{name}.{ext}");
+        std::fs::copy(src.with_file_name(&f), dir.join(&f))
+            .unwrap_or_else(|e| panic!("copying {f}: {e}"));
+    }
+    dir.join(format!("{name}.obj"))
+}
+
 /// The tests' bake options for `obj`: the OpenCL device, the default codec
 /// fixed (no search), no compression-error lights.
 pub fn bake_config(obj: &Path, resolution: Resolution) -> BakeConfig {
