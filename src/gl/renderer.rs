@@ -286,16 +286,10 @@ impl GlRenderer {
         lights: &[Light],
         scales: &BTreeMap<String, f32>,
     ) -> Result<GlFrameStats, GlError> {
-        self.timers.poll(gl, false);
-        let mut stats = GlFrameStats {
-            lights: lights.len(),
-            ..GlFrameStats::default()
-        };
-        if self.unchanged(lights, scales, false) {
-            stats.unchanged = true;
+        let stats = self.start_frame(gl, lights, scales, false)?;
+        if stats.unchanged {
             return Ok(stats);
         }
-        stats.views = self.shadow_maps(gl, lights)?;
         if self.last_scales.as_ref() != Some(scales) {
             self.direct
                 .set_emission(gl, &self.emission.exitance(self.n, scales));
@@ -342,14 +336,30 @@ impl GlRenderer {
         Ok(stats)
     }
 
-    /// Whether a frame of `lights` and `scales` (its `H` from the CPU or
-    /// not) would recompute nothing.
-    fn unchanged(&self, lights: &[Light], scales: &BTreeMap<String, f32>, cpu: bool) -> bool {
-        self.options.cache
+    /// What both kinds of frame do first: the timers read, and either
+    /// nothing (the same `lights`, `scales` and kind of frame as the last:
+    /// the stats say `unchanged`) or the shadow maps rendered.
+    fn start_frame(
+        &mut self,
+        gl: &glow::Context,
+        lights: &[Light],
+        scales: &BTreeMap<String, f32>,
+        cpu: bool,
+    ) -> Result<GlFrameStats, GlError> {
+        self.timers.poll(gl, false);
+        let mut stats = GlFrameStats {
+            lights: lights.len(),
+            ..GlFrameStats::default()
+        };
+        stats.unchanged = self.options.cache
             && self
                 .last
                 .as_ref()
-                .is_some_and(|(l, s, c)| l == lights && s == scales && *c == cpu)
+                .is_some_and(|(l, s, c)| l == lights && s == scales && *c == cpu);
+        if !stats.unchanged {
+            stats.views = self.shadow_maps(gl, lights)?;
+        }
+        Ok(stats)
     }
 
     /// The lights packed and uploaded, and their shadow maps rendered (the
@@ -396,7 +406,6 @@ impl GlRenderer {
         scales: &BTreeMap<String, f32>,
         h: &[Vec<f32>; 3],
     ) -> Result<GlFrameStats, GlError> {
-        self.timers.poll(gl, false);
         if h.iter().any(|c| c.len() != self.n) {
             return Err(GlError::Call(format!(
                 "H of {} patches given to a renderer of {}",
@@ -404,26 +413,19 @@ impl GlRenderer {
                 self.n
             )));
         }
-        let mut stats = GlFrameStats {
-            lights: lights.len(),
-            ..GlFrameStats::default()
-        };
-        if self.unchanged(lights, scales, true) {
-            stats.unchanged = true;
+        let stats = self.start_frame(gl, lights, scales, true)?;
+        if stats.unchanged {
             return Ok(stats);
         }
-        stats.views = self.shadow_maps(gl, lights)?;
-        let mut bytes = Vec::with_capacity(12 * self.n);
-        for c in h {
-            for v in c {
-                bytes.extend_from_slice(&v.to_le_bytes());
-            }
-        }
-        // SAFETY: an upload into the gather's output buffer, which holds
-        // exactly 3 n floats, on the current context.
+        // SAFETY: uploads of n floats per channel into the gather's output
+        // buffer, which holds exactly 3 n (channel-major), on the current
+        // context.
         unsafe {
             gl.bind_buffer(glow::SHADER_STORAGE_BUFFER, Some(self.gather.h_buffer()));
-            gl.buffer_sub_data_u8_slice(glow::SHADER_STORAGE_BUFFER, 0, &bytes);
+            for (c, channel) in h.iter().enumerate() {
+                let offset = (c * 4 * self.n) as i32;
+                gl.buffer_sub_data_u8_slice(glow::SHADER_STORAGE_BUFFER, offset, bytes_of(channel));
+            }
             gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT);
         }
         super::check(gl, "the frame with H from the CPU")?;

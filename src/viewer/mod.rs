@@ -406,7 +406,15 @@ impl App {
                 _ => return Err(e.into()),
             }
         }
-        self.good_lights = Some((self.lights.lights.clone(), self.lights.emission.clone()));
+        // Kept only when they changed: no copies on the frames that reuse.
+        let (lights, emission) = (&self.lights.lights, &self.lights.emission);
+        if !self
+            .good_lights
+            .as_ref()
+            .is_some_and(|(l, e)| l == lights && e == emission)
+        {
+            self.good_lights = Some((lights.clone(), emission.clone()));
+        }
         let Some(state) = self.state.as_mut() else {
             return Ok(());
         };
