@@ -397,7 +397,8 @@ impl GlRenderer {
     /// pass's direct light at pixels). The direct, near-field and gather
     /// passes do not run, so [`GlRenderer::d`] and [`GlRenderer::b0`] do
     /// not describe this frame. Where GL is slow at compute (a software
-    /// rasterizer: llvmpipe's gather takes 100× the CPU's) this keeps the
+    /// rasterizer: llvmpipe's gather, 214–267 ms on the Cornell box at 3,940
+    /// patches against the CPU's 0.5–0.9 ms, `bench frame`) this keeps the
     /// window interactive. Nothing runs when nothing changed.
     pub fn frame_with_h(
         &mut self,
