@@ -147,6 +147,7 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
     }
     check_exposure(args.exposure)?;
     check_image_size(args.width, args.height)?;
+    let budget = shadow_budget(args.shadow_budget)?;
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("creating the output directory {}", dir.display()))?;
@@ -170,6 +171,7 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
         (args.width, args.height),
         &args.backend,
         args.shadow_resolution,
+        budget,
     )?;
     let exposure = write_png(&args.output, &img, args.exposure)?;
     if let Some(hdr) = &args.hdr {
@@ -235,6 +237,7 @@ pub(crate) fn draw_headless(
     (width, height): (usize, usize),
     backend: &str,
     shadow_resolution: usize,
+    shadow_budget: Option<u64>,
 ) -> anyhow::Result<(radiosity::runtime::render::Image, String)> {
     use radiosity::runtime::render::render;
     use radiosity::runtime::texture::Albedo;
@@ -271,6 +274,7 @@ pub(crate) fn draw_headless(
                 radiosity::gl::renderer::GlOptions {
                     shadow_resolution,
                     samples: rt.options.samples,
+                    shadow_budget,
                     ..Default::default()
                 },
             )
@@ -364,6 +368,18 @@ pub(crate) fn check_image_size(width: usize, height: usize) -> anyhow::Result<()
 /// A fixed exposure must scale radiance to something displayable: a
 /// positive finite factor (NaN or infinity would write a black or white
 /// image without a word).
+/// `--shadow-budget` in MiB as bytes: positive, finite and at most 2^24
+/// MiB (16 TiB).
+fn shadow_budget(mib: Option<f64>) -> anyhow::Result<Option<u64>> {
+    match mib {
+        None => Ok(None),
+        Some(m) if m.is_finite() && m > 0.0 && m <= (1u64 << 24) as f64 => {
+            Ok(Some((m * (1u64 << 20) as f64).round().max(1.0) as u64))
+        }
+        Some(m) => bail!("--shadow-budget {m}: expected a positive number of MiB, at most 2^24"),
+    }
+}
+
 fn check_exposure(exposure: Option<f32>) -> anyhow::Result<()> {
     match exposure {
         Some(e) if !(e.is_finite() && e > 0.0) => {
@@ -403,6 +419,16 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
     })?;
     if args.frames == Some(0) {
         bail!("--frames 0: expected at least 1");
+    }
+    let budget = shadow_budget(args.shadow_budget)?;
+    let keys = viewer::keys::KeyScript::parse(args.keys.as_deref().unwrap_or(""))
+        .with_context(|| format!("--keys {:?}", args.keys.as_deref().unwrap_or("")))?;
+    if let Some(n) = args.frames.filter(|&n| n <= keys.len() as u64) {
+        bail!(
+            "--frames {n} with {} key presses: one press follows each frame, so at least {} frames",
+            keys.len(),
+            keys.len() + 1
+        );
     }
     if args.screenshot.is_some() && args.frames.is_none() {
         bail!("--screenshot needs --frames N (P or F12 saves screenshots interactively)");
@@ -447,6 +473,7 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
                 (w, h),
                 "auto",
                 args.shadow_resolution,
+                budget,
             )?;
             let exposure = write_png(png, &img, args.exposure)?;
             eprintln!("{summary}; exposure {exposure:.4}");
@@ -466,11 +493,13 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
             gl: radiosity::gl::renderer::GlOptions {
                 shadow_resolution: args.shadow_resolution,
                 samples: args.samples,
+                shadow_budget: budget,
                 ..Default::default()
             },
             exposure: args.exposure,
             title,
             patch_light,
+            keys,
         },
     )
     .map_err(|e| match e {

@@ -384,6 +384,10 @@ struct RenderArgs {
     /// Shadow map side in texels (gl).
     #[arg(long, default_value_t = 2048)]
     shadow_resolution: usize,
+    /// The most GPU memory the shadow maps may take, in MiB (gl; default:
+    /// what the GL grants). Lights needing more are refused with the sizes.
+    #[arg(long, value_name = "MIB")]
+    shadow_budget: Option<f64>,
     /// Also write the view's linear radiance, before exposure, as PFM.
     #[arg(long, value_name = "OUT.pfm")]
     hdr: Option<PathBuf>,
@@ -443,6 +447,17 @@ struct ViewArgs {
     /// Shadow map side in texels.
     #[arg(long, default_value_t = 2048)]
     shadow_resolution: usize,
+    /// The most GPU memory the shadow maps may take, in MiB (default: what
+    /// the GL grants). A light added beyond it is taken back, with the
+    /// sizes on stderr.
+    #[arg(long, value_name = "MIB")]
+    shadow_budget: Option<f64>,
+    /// Keys to press, one after each drawn frame, before the user's:
+    /// comma-separated names as winit gives them, each optionally `*COUNT`
+    /// ("KeyB,ArrowLeft*3,F5": add a spot, move it left three steps, save).
+    /// For demonstrations that repeat exactly, and for tests.
+    #[arg(long, value_name = "KEYS")]
+    keys: Option<String>,
     /// Sample points per patch for direct light (1..=16).
     #[arg(long, default_value_t = radiosity::runtime::direct::DEFAULT_SAMPLES)]
     samples: usize,

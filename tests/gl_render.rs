@@ -436,6 +436,35 @@ fn too_many_shadow_views_is_a_clear_error_and_the_renderer_goes_on() {
     let ok = r.frame(gl, &config.lights, &config.emission).unwrap();
     assert!(!ok.unchanged && ok.views > 0);
     r.delete(gl);
+    // A budget is checked before allocating: 16² maps of 4-byte depth are
+    // 1 KiB a view, so 10 KiB hold 10 views; 3 points (18 views) do not,
+    // and the renderer goes on with what fits.
+    let mut r = GlRenderer::new(
+        gl,
+        &rt,
+        GlOptions {
+            shadow_resolution: 16,
+            shadow_budget: Some(10 << 10),
+            ..GlOptions::default()
+        },
+    )
+    .unwrap();
+    let e = r.frame(gl, &many[..3], &config.emission).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            GlError::OverBudget {
+                bytes: 18432,
+                budget: 10240,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("18 views"), "{e}");
+    let ok = r.frame(gl, &many[..1], &config.emission).unwrap();
+    assert!(!ok.unchanged && ok.views == 6);
+    r.delete(gl);
 }
 
 #[test]

@@ -1,7 +1,9 @@
 //! The viewer's window (`radiosity view`) under Xvfb, run as a user runs
 //! it: scripted frames and a screenshot that must show what the headless
-//! GL renderer draws from the same camera and lights; without a display, a
-//! clear error, and the headless fallback of the README's main command.
+//! GL renderer draws from the same camera and lights; keys pressed in the
+//! window (`--keys`) editing, saving and taking back lights; without a
+//! display, a clear error, and the headless fallback of the README's main
+//! command.
 //! Xvfb comes from scripts/setup; a machine without `xvfb-run` fails here
 //! with a message saying so.
 
@@ -10,15 +12,12 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-/// The bundled Cornell box copied to a temporary directory, with its bake
-/// cache there too.
+/// The bundled Cornell box copied to a temporary directory (its bake cache
+/// goes there too): the OBJ and the directory.
 fn cornell(tag: &str) -> (PathBuf, PathBuf) {
-    let src = common::bundled("cornell_box");
-    let dir = common::temp_dir(tag);
-    for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
-        std::fs::copy(src.with_file_name(f), dir.join(f)).unwrap();
-    }
-    (dir.join("cornell_box.obj"), dir)
+    let obj = common::bundled_copy("cornell_box", tag);
+    let dir = obj.parent().unwrap().to_path_buf();
+    (obj, dir)
 }
 
 fn radiosity(dir: &Path, args: &[&str], display: bool) -> Output {
@@ -223,4 +222,262 @@ fn without_a_display_the_viewer_says_so_or_renders_headless() {
     let o = radiosity(&dir, &["view", obj, "--screenshot", "x.png"], false);
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--frames"));
+    for (args, says) in [
+        (
+            &["--keys", "KeyN,Enter"][..],
+            "\"Enter\" is not one the viewer acts on",
+        ),
+        (&["--keys", "KeyN*0"], "the count after '*'"),
+        (&["--keys", "KeyN*2", "--frames", "2"], "at least 3 frames"),
+        (&["--shadow-budget", "0"], "--shadow-budget 0"),
+        (&["--shadow-budget", "nan"], "--shadow-budget NaN"),
+    ] {
+        let o = radiosity(&dir, &[&["view", obj][..], args].concat(), false);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+}
+
+/// The exposure `radiosity render` printed ("…; exposure K").
+fn printed_exposure(stderr: &str) -> String {
+    stderr
+        .rsplit("exposure ")
+        .next()
+        .and_then(|t| t.split_whitespace().next())
+        .unwrap_or_else(|| panic!("no exposure printed: {stderr}"))
+        .to_string()
+}
+
+/// Keys pressed in the window (`--keys`, as a user presses them) edit the
+/// lights: the lights F5 saves are the edits the keys name, and the
+/// window's last frame is what the headless renderer draws from the saved
+/// file.
+#[test]
+fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
+    let (obj, dir) = cornell("viewer-keys");
+    let obj_s = obj.to_str().unwrap();
+    let size = [
+        "--width",
+        "160",
+        "--height",
+        "120",
+        "--patches",
+        "800",
+        "--shadow-resolution",
+        "512",
+    ];
+    let png = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    // The box as bundled, and the exposure the renderer picks for it: the
+    // window's later frames keep one exposure, so both sides use this one.
+    let o = radiosity(
+        &dir,
+        &[
+            &["render", obj_s, "--backend", "gl", "-o", &png("base.png")][..],
+            &size[..],
+        ]
+        .concat(),
+        false,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let exposure = printed_exposure(&err);
+    // B: a spot at the camera looking ahead; two steps left; ten times
+    // dimmer by 0.8; F5 saves. 14 presses after frames 1–14, frame 15 shot.
+    let saved = dir.join("saved.json");
+    let o = radiosity(
+        &dir,
+        &[
+            &[
+                "view",
+                obj_s,
+                "--frames",
+                "15",
+                "--keys",
+                "KeyB,ArrowLeft*2,Minus*10,F5",
+                // The GL's own patch light, as `render --backend gl`
+                // computes it (the CPU's differs by a few 1/255 here,
+                // `patch_light_on_the_cpu_shows_what_the_gpu_computes`).
+                "--patch-light",
+                "gpu",
+                "--save-to",
+                saved.to_str().unwrap(),
+                "--exposure",
+                &exposure,
+                "--screenshot",
+                &png("shot.png"),
+            ][..],
+            &size[..],
+        ]
+        .concat(),
+        true,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("15 frames") && err.contains("saved the camera and lights"),
+        "{err}"
+    );
+    let bundled = radiosity::core::scene_config::load(&obj.with_extension("json")).unwrap();
+    let edited = radiosity::core::scene_config::load(&saved).unwrap();
+    assert_eq!(edited.camera, bundled.camera);
+    assert_eq!(edited.lights.len(), 2);
+    assert_eq!(edited.lights[0], bundled.lights[0]);
+    let scene = radiosity::core::scene::load(&obj).unwrap();
+    let (lo, hi) = scene.bounds();
+    let diagonal = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f32>().sqrt();
+    let step = 0.01 * diagonal;
+    let cam = &bundled.camera;
+    match &edited.lights[1] {
+        radiosity::core::scene_config::Light::Spot {
+            position,
+            direction,
+            intensity,
+            cone_angle_deg,
+            beam_angle_deg,
+        } => {
+            // Two steps along the camera's horizontal axis (x here).
+            let moved: Vec<f32> = (0..3).map(|k| position[k] - cam.position[k]).collect();
+            assert!(
+                (moved[0].abs() - 2.0 * step).abs() < 1e-3 * step
+                    && moved[1] == 0.0
+                    && moved[2] == 0.0,
+                "{moved:?}, step {step}"
+            );
+            assert_eq!(*direction, [0.0, 0.0, 1.0]);
+            assert_eq!((*cone_angle_deg, *beam_angle_deg), (30.0, 20.0));
+            // A new spot is 4e4 step² W/sr; ten presses of − take 0.8 each
+            // (f32 products: within 20 roundings).
+            let want = 4e4 * step * step * 0.8f32.powi(10);
+            for c in intensity {
+                assert!(
+                    (c / want - 1.0).abs() < 20.0 * f32::EPSILON,
+                    "{c} against {want}"
+                );
+            }
+        }
+        l => panic!("B adds a spot, got {l:?}"),
+    }
+    // The saved lights drawn headless at the same exposure: the window's
+    // last frame, up to two GL contexts' rounding (as the first test).
+    let o = radiosity(
+        &dir,
+        &[
+            &[
+                "render",
+                obj_s,
+                "--backend",
+                "gl",
+                "--camera-lights",
+                saved.to_str().unwrap(),
+                "--exposure",
+                &exposure,
+                "-o",
+                &png("saved.png"),
+            ][..],
+            &size[..],
+        ]
+        .concat(),
+        false,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (shot, drawn, base) = (
+        rgb(&dir.join("shot.png")),
+        rgb(&dir.join("saved.png")),
+        rgb(&dir.join("base.png")),
+    );
+    let worst = shot
+        .pixels()
+        .zip(drawn.pixels())
+        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] as i32 - q[c] as i32).abs()))
+        .max()
+        .unwrap();
+    assert!(
+        worst <= 1,
+        "the window's last frame differs by {worst} / 255"
+    );
+    // And the added spot shows: the picture is brighter than the box's own.
+    let mean = |i: &image::RgbImage| i.pixels().map(|p| p[1] as f64).sum::<f64>() / 19200.0;
+    assert!(
+        mean(&shot) > 1.1 * mean(&base),
+        "{} against {}",
+        mean(&shot),
+        mean(&base)
+    );
+}
+
+/// A light whose shadow views do not fit `--shadow-budget` is taken back
+/// with the sizes on stderr, and the session goes on: the next light that
+/// fits is kept. With 512² maps a view is 1 MiB: the box's 60° spot takes
+/// 6 views, a point 6 more (12 MiB, over 8), a 30° spot 1 (7 MiB).
+#[test]
+fn a_light_beyond_the_shadow_budget_is_taken_back_and_the_session_goes_on() {
+    let (obj, dir) = cornell("viewer-budget");
+    let obj_s = obj.to_str().unwrap();
+    let size = ["--width", "160", "--height", "120", "--patches", "800"];
+    let maps = ["--shadow-resolution", "512", "--shadow-budget", "8"];
+    for mode in ["gpu", "cpu"] {
+        let saved = dir.join(format!("saved-{mode}.json"));
+        let o = radiosity(
+            &dir,
+            &[
+                &[
+                    "view",
+                    obj_s,
+                    "--frames",
+                    "4",
+                    "--patch-light",
+                    mode,
+                    "--keys",
+                    "KeyN,KeyB,F5",
+                    "--save-to",
+                    saved.to_str().unwrap(),
+                ][..],
+                &size[..],
+                &maps[..],
+            ]
+            .concat(),
+            true,
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{mode}: {err}");
+        assert!(
+            err.contains(
+                "the shadow maps: 12 views of 512² depth texels (points and wide spots take 6 views, other lights 1) would take 12.00 MiB, over the budget of 8.00 MiB: the last change is undone"
+            ) && err.contains("4 frames"),
+            "{mode}: {err}"
+        );
+        let lights = radiosity::core::scene_config::load(&saved).unwrap().lights;
+        assert_eq!(lights.len(), 2, "{mode}: {lights:?}");
+        assert!(
+            matches!(lights[1], radiosity::core::scene_config::Light::Spot { .. }),
+            "{mode}: {lights:?}"
+        );
+    }
+    // Headless, the same budget is an error naming it.
+    let o = radiosity(
+        &dir,
+        &[
+            &[
+                "render",
+                obj_s,
+                "--backend",
+                "gl",
+                "-o",
+                "x.png",
+                "--shadow-budget",
+                "4",
+            ][..],
+            &size[..],
+            &maps[..2],
+        ]
+        .concat(),
+        false,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("6.00 MiB, over the budget of 4.00 MiB"),
+        "{err}"
+    );
 }

@@ -45,6 +45,19 @@ pub enum GlError {
     /// bytes: a smaller resolution or fewer lights may fit.
     #[error("OpenGL: out of memory for {what} ({:.2} GiB)", *bytes as f64 / (1u64 << 30) as f64)]
     OutOfMemory { what: String, bytes: u64 },
+    /// `what` would take `bytes` bytes, more than the `budget` the caller
+    /// set for it: a smaller resolution, fewer lights or a larger budget
+    /// fits.
+    #[error(
+        "{what} would take {:.2} MiB, over the budget of {:.2} MiB",
+        *bytes as f64 / (1u64 << 20) as f64,
+        *budget as f64 / (1u64 << 20) as f64
+    )]
+    OverBudget {
+        what: String,
+        bytes: u64,
+        budget: u64,
+    },
 }
 
 /// The sources concatenated after the version line and `#define NAME

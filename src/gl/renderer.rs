@@ -49,6 +49,11 @@ pub struct GlOptions {
     pub skip_columns: bool,
     /// Skip the frame's passes when nothing changed.
     pub cache: bool,
+    /// The most bytes the shadow maps may take (`None`: what the GL
+    /// grants; a frame whose lights need more fails with
+    /// [`GlError::OverBudget`] before allocating, and the renderer goes on
+    /// with other lights).
+    pub shadow_budget: Option<u64>,
 }
 
 impl Default for GlOptions {
@@ -58,6 +63,7 @@ impl Default for GlOptions {
             samples: crate::runtime::direct::DEFAULT_SAMPLES,
             skip_columns: true,
             cache: true,
+            shadow_budget: None,
         }
     }
 }
@@ -227,7 +233,7 @@ impl GlRenderer {
         let n = rt.n();
         let scene = GlScene::new(gl, &rt.scene, baked.options.two_sided)?;
         let map = GlSurfaceMap::new(gl, &baked.surface_map)?;
-        let shadows = ShadowMaps::new(gl, options.shadow_resolution)?;
+        let shadows = ShadowMaps::new(gl, options.shadow_resolution, options.shadow_budget)?;
         let direct = GlDirect::new(gl, baked)?;
         let gather = GlGather::new(gl, &baked.matrix)?;
         let near = GlNearField::new(gl, &rt.near_field_weights(options.samples))?;

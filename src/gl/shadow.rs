@@ -30,11 +30,20 @@ pub struct ShadowMaps {
     pub nearest: glow::Sampler,
     layers: usize,
     pub resolution: usize,
+    /// The most bytes the depth array may take (`None`: what the GL
+    /// grants).
+    budget: Option<u64>,
 }
 
 impl ShadowMaps {
-    /// Compiles the pass; maps of `resolution` texels a side.
-    pub fn new(gl: &glow::Context, resolution: usize) -> Result<ShadowMaps, GlError> {
+    /// Compiles the pass; maps of `resolution` texels a side, the depth
+    /// array within `budget` bytes when one is given (checked before each
+    /// allocation: [`GlError::OverBudget`]).
+    pub fn new(
+        gl: &glow::Context,
+        resolution: usize,
+        budget: Option<u64>,
+    ) -> Result<ShadowMaps, GlError> {
         // SAFETY: a query on the current context.
         let max = unsafe { gl.get_parameter_i32(glow::MAX_TEXTURE_SIZE) }.max(1) as usize;
         if !(16..=MAX_RESOLUTION.min(max)).contains(&resolution) {
@@ -82,6 +91,7 @@ impl ShadowMaps {
             nearest,
             layers: 0,
             resolution,
+            budget,
         };
         maps.allocate(gl, 1)?;
         Ok(maps)
@@ -95,6 +105,18 @@ impl ShadowMaps {
                 "the shadow maps: {layers} views of {r}² depth texels (points and wide spots take 6 views, other lights 1)"
             )
         };
+        // 4 bytes a texel (DEPTH_COMPONENT32F); saturating, as the layers
+        // count the lights' views.
+        let bytes = 4u64
+            .saturating_mul((r as u64).pow(2))
+            .saturating_mul(layers as u64);
+        if let Some(budget) = self.budget.filter(|&b| bytes > b) {
+            return Err(GlError::OverBudget {
+                what: what(),
+                bytes,
+                budget,
+            });
+        }
         // SAFETY: a limit query on the current context.
         let max = unsafe { gl.get_parameter_i32(glow::MAX_ARRAY_TEXTURE_LAYERS) };
         if layers > max.max(1) as usize {
@@ -128,7 +150,7 @@ impl ShadowMaps {
                     self.layers = 0;
                     Err(GlError::OutOfMemory {
                         what: what(),
-                        bytes: 4 * (r as u64).pow(2) * layers as u64,
+                        bytes,
                     })
                 }
                 code => Err(GlError::Call(format!(

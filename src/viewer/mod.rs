@@ -5,7 +5,8 @@
 //! tone-mapping pass ([`crate::gl::tonemap`]) putting it on screen. The
 //! keys and mouse act through [`controls`], which is tested without a
 //! window; the window itself is tested under Xvfb (tests/viewer.rs) with
-//! `--frames N --screenshot FILE`.
+//! `--frames N --screenshot FILE`, and `--keys` ([`keys`]) presses keys
+//! there as a user would.
 //!
 //! The patch light (direct light on patches and the gather) runs on the
 //! GPU or in the CPU run time, whichever the first frame measures faster
@@ -17,6 +18,7 @@
 //! and points to `radiosity render`, which draws the same images headless.
 
 pub mod controls;
+pub mod keys;
 
 use crate::core::scene_config::SceneConfig;
 use crate::gl::renderer::{GlOptions, GlRenderer, PASSES};
@@ -34,6 +36,7 @@ use glutin::context::{
 use glutin::display::{GetGlDisplay, GlDisplay};
 use glutin::surface::{GlSurface, Surface, SwapInterval, WindowSurface};
 use glutin_winit::{DisplayBuilder, GlWindow};
+use keys::KeyScript;
 use std::ffi::CString;
 use std::num::NonZeroU32;
 use std::path::PathBuf;
@@ -63,6 +66,8 @@ pub struct ViewerConfig {
     pub title: String,
     /// Where each frame's patch light is computed.
     pub patch_light: PatchLight,
+    /// Keys pressed one after each drawn frame, before the user's.
+    pub keys: KeyScript,
 }
 
 /// Where the viewer computes a frame's patch light (direct light on the
@@ -391,7 +396,10 @@ impl App {
             // A light added beyond what the shadow maps can hold: say so
             // and go back to the last lights that drew, instead of ending
             // the session.
-            let recoverable = matches!(e, GlError::OutOfMemory { .. } | GlError::Unsupported(_));
+            let recoverable = matches!(
+                e,
+                GlError::OutOfMemory { .. } | GlError::OverBudget { .. } | GlError::Unsupported(_)
+            );
             match self.good_lights.clone() {
                 Some((lights, emission)) if recoverable && lights != self.lights.lights => {
                     eprintln!("{e}: the last change is undone");
@@ -627,6 +635,12 @@ impl ApplicationHandler for App {
                             }
                         }
                         el.exit();
+                        return;
+                    }
+                }
+                if let Some(code) = self.cfg.keys.next_key() {
+                    if let Err(e) = self.key(el, code) {
+                        eprintln!("{e}");
                     }
                 }
             }
