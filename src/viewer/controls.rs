@@ -77,13 +77,35 @@ impl CameraRig {
         self.position += (r * d.x + self.up * d.y + self.forward * d.z) * step;
     }
 
-    /// Moves towards the orbit point (`k < 1`) or away (`k > 1`).
+    /// Moves towards the orbit point (`k < 1`) or away (`k > 1`), the
+    /// distance kept within [`MIN_DISTANCE`, `MAX_DISTANCE`] and the
+    /// position finite (a wheel turned on and on stops there instead of
+    /// reaching infinity, which the camera/lights file refuses).
     pub fn zoom(&mut self, k: f32) {
         let pivot = self.position + self.forward * self.distance;
-        self.distance = (self.distance * k).max(1e-6);
-        self.position = pivot - self.forward * self.distance;
+        let distance = (self.distance * k).clamp(MIN_DISTANCE, MAX_DISTANCE);
+        let position = pivot - self.forward * distance;
+        if distance.is_finite() && position.is_finite() {
+            self.distance = distance;
+            self.position = position;
+        }
     }
 }
+
+/// The closest the camera zooms to its orbit point, in scene units.
+pub const MIN_DISTANCE: f32 = 1e-6;
+
+/// The farthest the camera zooms from its orbit point, in scene units.
+pub const MAX_DISTANCE: f32 = 1e30;
+
+/// The largest and smallest nonzero component a light's power reaches by
+/// [`Edit::Scale`]: presses beyond them do nothing, so that `+` held down
+/// never reaches infinity (which the camera/lights file refuses and the
+/// shaders turn into NaN) and `−` never reaches zero (from which `+` could
+/// not bring the light back). 1e30 W/sr leaves room for `I / r²` in f32
+/// down to distances of 1e-4.
+pub const MAX_POWER: f32 = 1e30;
+pub const MIN_POWER: f32 = 1e-30;
 
 /// Colours the `C` key cycles through (multipliers of the light's
 /// luminance-preserving power).
@@ -244,8 +266,10 @@ impl LightRig {
                 }
             }
             Edit::Scale(k) => {
-                for c in power.iter_mut() {
-                    *c *= k;
+                let scaled = power.map(|c| c * k);
+                let top = scaled.iter().fold(0.0f32, |m, &c| m.max(c));
+                if scaled.iter().all(|c| c.is_finite()) && top <= MAX_POWER && top >= MIN_POWER {
+                    *power = scaled;
                 }
             }
             Edit::Cone(deg) => {
@@ -357,5 +381,71 @@ mod tests {
         assert_eq!(rig.emission.get("lamp"), Some(&0.0));
         rig.apply(Edit::ToggleEmission, &cam);
         assert_eq!(rig.emission.get("lamp"), Some(&1.0));
+    }
+
+    fn power(l: &Light) -> [f32; 3] {
+        match l {
+            Light::Directional { irradiance, .. } => *irradiance,
+            Light::Point { intensity, .. } | Light::Spot { intensity, .. } => *intensity,
+        }
+    }
+
+    /// `+` or `−` held down (a thousand presses each way) stops at the
+    /// bounds instead of reaching infinity or zero, and comes back; the
+    /// wheel likewise keeps the camera finite.
+    #[test]
+    fn held_keys_and_wheels_stop_at_finite_bounds() {
+        let config = SceneConfig {
+            camera: camera(),
+            lights: vec![Light::Point {
+                position: [0.0, 3.0, 0.0],
+                intensity: [10.0, 5.0, 0.0],
+            }],
+            units: "m".into(),
+            description: String::new(),
+            emission: BTreeMap::new(),
+        };
+        let cam = CameraRig::new(&config.camera);
+        let mut rig = LightRig::new(&config, 100.0, vec![]);
+        for _ in 0..1000 {
+            rig.apply(Edit::Scale(1.25), &cam);
+        }
+        let p = power(&rig.lights[0]);
+        assert!(
+            p[0] <= MAX_POWER && p[0] > MAX_POWER / 1.25 && p[2] == 0.0,
+            "{p:?}"
+        );
+        assert!((p[0] / p[1] - 2.0).abs() < 1e-5, "the colour stays: {p:?}");
+        for _ in 0..2000 {
+            rig.apply(Edit::Scale(0.8), &cam);
+        }
+        let p = power(&rig.lights[0]);
+        assert!(
+            p[0] >= MIN_POWER && p[0] < MIN_POWER / 0.8 && p[1] > 0.0,
+            "{p:?}"
+        );
+        rig.apply(Edit::Scale(1.25), &cam);
+        assert!(power(&rig.lights[0])[0] > p[0], "and + brings it back");
+        let mut c = CameraRig::new(&config.camera);
+        for _ in 0..2000 {
+            c.zoom(1.0 / 0.9);
+        }
+        assert!(
+            c.position.is_finite() && c.distance == MAX_DISTANCE,
+            "{c:?}"
+        );
+        for _ in 0..4000 {
+            c.zoom(0.9);
+        }
+        assert!(
+            c.position.is_finite() && c.distance == MIN_DISTANCE,
+            "{c:?}"
+        );
+        let saved = c.camera();
+        assert!(saved
+            .position
+            .iter()
+            .chain(&saved.target)
+            .all(|v| v.is_finite()));
     }
 }
