@@ -268,7 +268,7 @@ impl LightRig {
             Edit::Scale(k) => {
                 let scaled = power.map(|c| c * k);
                 let top = scaled.iter().fold(0.0f32, |m, &c| m.max(c));
-                if scaled.iter().all(|c| c.is_finite()) && top <= MAX_POWER && top >= MIN_POWER {
+                if scaled.iter().all(|c| c.is_finite()) && (MIN_POWER..=MAX_POWER).contains(&top) {
                     *power = scaled;
                 }
             }
