@@ -3,7 +3,7 @@
 //! share: finding or making the bake, loading the camera and lights,
 //! drawing headless, writing the PNG.
 
-use crate::{with_flag, DeviceArgs, RenderArgs, ViewArgs};
+use crate::cli::{with_flag, DeviceArgs, RenderArgs, ViewArgs};
 use anyhow::{bail, Context as _};
 use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::{BakeConfig, ComputeChoice};

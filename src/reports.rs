@@ -2,7 +2,7 @@
 //! binary): the scene lists (the bundled scenes, Sponza by path when
 //! present), the flags checked and turned into the library's options.
 
-use crate::DeviceArgs;
+use crate::cli::DeviceArgs;
 use anyhow::{bail, Context as _};
 use radiosity::bench;
 use radiosity::core::compute::DeviceSelection;
