@@ -40,6 +40,21 @@ fn radiosity(dir: &Path, args: &[&str], display: bool) -> Output {
     })
 }
 
+/// The largest and the mean absolute difference of two images' channels,
+/// in 1/255.
+fn difference(a: &image::RgbImage, b: &image::RgbImage) -> (i32, f64) {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let d: Vec<i32> = a
+        .pixels()
+        .zip(b.pixels())
+        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] as i32 - q[c] as i32).abs()))
+        .collect();
+    (
+        *d.iter().max().unwrap(),
+        d.iter().map(|&v| v as f64).sum::<f64>() / d.len() as f64,
+    )
+}
+
 fn rgb(path: &Path) -> image::RgbImage {
     image::open(path)
         .unwrap_or_else(|e| panic!("reading {}: {e}", path.display()))
@@ -94,12 +109,7 @@ fn scripted_frames_in_a_window_show_what_the_headless_renderer_draws() {
     assert_eq!(a.dimensions(), b.dimensions());
     // The same GL passes, camera, lights and automatic exposure: the images
     // may differ only where two GL contexts round differently (none seen).
-    let worst = a
-        .pixels()
-        .zip(b.pixels())
-        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] as i32 - q[c] as i32).abs()))
-        .max()
-        .unwrap();
+    let (worst, _) = difference(&a, &b);
     assert!(
         worst <= 1,
         "the window's screenshot differs by {worst} / 255"
@@ -161,24 +171,13 @@ fn patch_light_on_the_cpu_shows_what_the_gpu_computes() {
     let (gpu_ms, cpu_ms) = (ms(" ms on the GPU"), ms(" ms on the CPU"));
     let chose_cpu = e.contains("patch light on the CPU");
     assert_eq!(chose_cpu, cpu_ms < gpu_ms, "{took}");
-    let diff = |a: &image::RgbImage, b: &image::RgbImage| {
-        let d: Vec<i32> = a
-            .pixels()
-            .zip(b.pixels())
-            .flat_map(|(p, q)| (0..3).map(move |c| (p[c] as i32 - q[c] as i32).abs()))
-            .collect();
-        (
-            *d.iter().max().unwrap(),
-            d.iter().map(|&v| v as f64).sum::<f64>() / d.len() as f64,
-        )
-    };
-    let (worst, mean) = diff(&cpu, &gpu);
+    let (worst, mean) = difference(&cpu, &gpu);
     eprintln!("CPU patch light against the GPU's: worst {worst} / 255, mean {mean:.3}");
     // Measured: worst 1, mean 0.10 (D on the patches: rays against shadow
     // maps, 1–2 % on a few shadow-edge patches); bounds several times that.
     assert!(worst <= 8 && mean <= 0.5, "worst {worst}, mean {mean}");
     let chosen = if chose_cpu { &cpu } else { &gpu };
-    assert_eq!(diff(&auto, chosen).0, 0, "auto draws what it chose");
+    assert_eq!(difference(&auto, chosen).0, 0, "auto draws what it chose");
 }
 
 #[test]
@@ -386,12 +385,7 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
         rgb(&dir.join("saved.png")),
         rgb(&dir.join("base.png")),
     );
-    let worst = shot
-        .pixels()
-        .zip(drawn.pixels())
-        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] as i32 - q[c] as i32).abs()))
-        .max()
-        .unwrap();
+    let (worst, _) = difference(&shot, &drawn);
     assert!(
         worst <= 1,
         "the window's last frame differs by {worst} / 255"
