@@ -526,5 +526,17 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
     for p in &report.screenshots {
         println!("{}", p.display());
     }
+    // A window closed (or Esc pressed) before the frames asked for: the
+    // screenshot they were to end with does not exist, which a script
+    // must not take for success.
+    if let (Some(n), Some(shot)) = (args.frames, &args.screenshot) {
+        if !report.screenshots.contains(shot) {
+            bail!(
+                "the window closed after {} of {n} frames: {} was not written",
+                report.frames,
+                shot.display()
+            );
+        }
+    }
     Ok(())
 }

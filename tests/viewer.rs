@@ -403,7 +403,9 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
 /// A light whose shadow views do not fit `--shadow-budget` is taken back
 /// with the sizes on stderr, and the session goes on: the next light that
 /// fits is kept. With 512² maps a view is 1 MiB: the box's 60° spot takes
-/// 6 views, a point 6 more (12 MiB, over 8), a 30° spot 1 (7 MiB).
+/// 6 views, a point 6 more (12 MiB, over 8), a 30° spot 1 (7 MiB). And a
+/// session that ends early (Esc) without its screenshot exits with an
+/// error.
 #[test]
 fn a_light_beyond_the_shadow_budget_is_taken_back_and_the_session_goes_on() {
     let (obj, dir) = cornell("viewer-budget");
@@ -448,6 +450,34 @@ fn a_light_beyond_the_shadow_budget_is_taken_back_and_the_session_goes_on() {
             "{mode}: {lights:?}"
         );
     }
+    // Esc among the keys closes the window before the frames asked for:
+    // the screenshot they were to end with is not there, and the exit
+    // status says so.
+    let shot = dir.join("never.png");
+    let o = radiosity(
+        &dir,
+        &[
+            &[
+                "view",
+                obj_s,
+                "--frames",
+                "3",
+                "--keys",
+                "Escape",
+                "--screenshot",
+                shot.to_str().unwrap(),
+            ][..],
+            &size[..],
+        ]
+        .concat(),
+        true,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the window closed after 1 of 3 frames") && !shot.exists(),
+        "{err}"
+    );
     // Headless, the same budget is an error naming it.
     let o = radiosity(
         &dir,
