@@ -282,7 +282,8 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
     assert!(o.status.success(), "{err}");
     let exposure = printed_exposure(&err);
     // B: a spot at the camera looking ahead; two steps left; ten times
-    // dimmer by 0.8; F5 saves. 14 presses after frames 1–14, frame 15 shot.
+    // dimmer by 0.8; G: a sun shining ahead, also dimmed; F5 saves. 25
+    // presses after frames 1–25, frame 26 shot.
     let saved = dir.join("saved.json");
     let o = radiosity(
         &dir,
@@ -291,9 +292,9 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
                 "view",
                 obj_s,
                 "--frames",
-                "15",
+                "26",
                 "--keys",
-                "KeyB,ArrowLeft*2,Minus*10,F5",
+                "KeyB,ArrowLeft*2,Minus*10,KeyG,Minus*10,F5",
                 // The GL's own patch light, as `render --backend gl`
                 // computes it (the CPU's differs by a few 1/255 here,
                 // `patch_light_on_the_cpu_shows_what_the_gpu_computes`).
@@ -314,13 +315,13 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(
-        err.contains("15 frames") && err.contains("saved the camera and lights"),
+        err.contains("26 frames") && err.contains("saved the camera and lights"),
         "{err}"
     );
     let bundled = radiosity::core::scene_config::load(&obj.with_extension("json")).unwrap();
     let edited = radiosity::core::scene_config::load(&saved).unwrap();
     assert_eq!(edited.camera, bundled.camera);
-    assert_eq!(edited.lights.len(), 2);
+    assert_eq!(edited.lights.len(), 3);
     assert_eq!(edited.lights[0], bundled.lights[0]);
     let scene = radiosity::core::scene::load(&obj).unwrap();
     let (lo, hi) = scene.bounds();
@@ -356,6 +357,22 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
             }
         }
         l => panic!("B adds a spot, got {l:?}"),
+    }
+    match &edited.lights[2] {
+        radiosity::core::scene_config::Light::Directional {
+            direction,
+            irradiance,
+        } => {
+            assert_eq!(*direction, [0.0, 0.0, 1.0]);
+            let want = radiosity::viewer::controls::SUN_IRRADIANCE * 0.8f32.powi(10);
+            for c in irradiance {
+                assert!(
+                    (c / want - 1.0).abs() < 20.0 * f32::EPSILON,
+                    "{c} against {want}"
+                );
+            }
+        }
+        l => panic!("G adds a sun, got {l:?}"),
     }
     // The saved lights drawn headless at the same exposure: the window's
     // last frame, up to two GL contexts' rounding (as the first test).

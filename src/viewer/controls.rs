@@ -107,6 +107,11 @@ pub const MAX_DISTANCE: f32 = 1e30;
 pub const MAX_POWER: f32 = 1e30;
 pub const MIN_POWER: f32 = 1e-30;
 
+/// Irradiance of a sun added by key ([`Edit::AddSun`]): what a new point
+/// light (`10⁴ step²` W/sr) gives at 20 steps, a fifth of the scene's
+/// diagonal, whatever the scene's unit.
+pub const SUN_IRRADIANCE: f32 = 25.0;
+
 /// Colours the `C` key cycles through (multipliers of the light's
 /// luminance-preserving power).
 pub const COLOURS: [[f32; 3]; 6] = [
@@ -136,6 +141,8 @@ pub enum Edit {
     AddPoint,
     /// A spot light at the camera, looking where it looks.
     AddSpot,
+    /// A directional light (a sun) shining where the camera looks.
+    AddSun,
     Remove,
     /// Switch every emissive material off, or back on.
     ToggleEmission,
@@ -182,24 +189,29 @@ impl LightRig {
         let right = rig.forward.cross(rig.up).normalize_or(Vec3::X);
         let step = self.step;
         match edit {
-            Edit::AddPoint | Edit::AddSpot => {
+            Edit::AddPoint | Edit::AddSpot | Edit::AddSun => {
                 // 10 W/sr at a scene of 10 units: scaled by step² so that
                 // a new light gives comparable irradiance at any scale.
                 let i = 1e4 * step * step;
                 let p: [f32; 3] = rig.position.into();
-                self.lights.push(if edit == Edit::AddPoint {
-                    Light::Point {
+                self.lights.push(match edit {
+                    Edit::AddPoint => Light::Point {
                         position: p,
                         intensity: [i; 3],
-                    }
-                } else {
-                    Light::Spot {
+                    },
+                    Edit::AddSpot => Light::Spot {
                         position: p,
                         direction: rig.forward.into(),
                         intensity: [4.0 * i; 3],
                         cone_angle_deg: 30.0,
                         beam_angle_deg: 20.0,
-                    }
+                    },
+                    // What a new point light gives 20 steps away, 25 in
+                    // the scene's units at any scale (i / (20 step)²).
+                    _ => Light::Directional {
+                        direction: rig.forward.into(),
+                        irradiance: [SUN_IRRADIANCE; 3],
+                    },
                 });
                 self.selected = self.lights.len() - 1;
                 return;
@@ -375,6 +387,21 @@ mod tests {
         rig.apply(Edit::AddPoint, &cam);
         assert_eq!(rig.lights.len(), 2);
         assert_eq!(rig.selected, 1);
+        rig.apply(Edit::Remove, &cam);
+        assert_eq!(rig.lights.len(), 1);
+        // A sun along the view, selected, and turned by the turn keys.
+        rig.apply(Edit::AddSun, &cam);
+        assert_eq!(rig.selected, 1);
+        let sun = |r: &LightRig| match r.lights[1] {
+            Light::Directional {
+                direction,
+                irradiance,
+            } => (Vec3::from(direction), irradiance),
+            ref l => panic!("{l:?}"),
+        };
+        assert_eq!(sun(&rig), (cam.forward, [SUN_IRRADIANCE; 3]));
+        rig.apply(Edit::Turn(0.1, 0.0), &cam);
+        assert!((sun(&rig).0.angle_between(cam.forward) - 0.1).abs() < 1e-5);
         rig.apply(Edit::Remove, &cam);
         assert_eq!(rig.lights.len(), 1);
         rig.apply(Edit::ToggleEmission, &cam);

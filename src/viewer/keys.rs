@@ -42,6 +42,7 @@ pub const NAMES: &[(&str, KeyCode)] = &[
     ("KeyC", KeyCode::KeyC),
     ("KeyN", KeyCode::KeyN),
     ("KeyB", KeyCode::KeyB),
+    ("KeyG", KeyCode::KeyG),
     ("Delete", KeyCode::Delete),
     ("Backspace", KeyCode::Backspace),
     ("KeyM", KeyCode::KeyM),

@@ -134,7 +134,7 @@ W A S D Q E: fly (forward, left, back, right, down, up)
 1 2 3 4 5: final, direct, indirect, patches, surface-map weights
 Tab: next light; arrows, PageUp/PageDown: move it; I J K L: turn it
 + -: brighter, dimmer; [ ]: narrower, wider cone; C: colour
-N: add a point light here; B: add a spot light looking ahead; Delete: remove
+N: add a point light here; B: a spot looking ahead; G: a sun shining ahead; Delete: remove
 M: emissive materials off / on; X: automatic exposure again
 P or F12: screenshot; F5 or Ctrl+S: save camera and lights; H: help; Esc: quit";
 
@@ -551,6 +551,7 @@ impl App {
             KeyCode::KeyC => edit(Edit::Colour, self),
             KeyCode::KeyN => edit(Edit::AddPoint, self),
             KeyCode::KeyB => edit(Edit::AddSpot, self),
+            KeyCode::KeyG => edit(Edit::AddSun, self),
             KeyCode::Delete | KeyCode::Backspace => edit(Edit::Remove, self),
             KeyCode::KeyM => edit(Edit::ToggleEmission, self),
             KeyCode::KeyX => self.exposure = None,
