@@ -6,7 +6,7 @@
 //! against the portable path (`tests/gather.rs`, the unit test in
 //! `gather.rs`).
 
-use super::{bc1_keys, Bc1Table};
+use super::palette::{bc1_keys, Bc1Table};
 
 /// [`super::sparse_rgb9e5`] with AVX2 (the runs of a row of tiles in one
 /// call): the three mantissas extracted by one variable shift and
@@ -418,7 +418,7 @@ unsafe fn bc4_select_avx512(pal: *const f32, bits: u64) -> std::arch::x86_64::__
 /// as [`bc1_row_avx512`]'s (`cols`: active block columns, byte offset and
 /// first column; `b0p` from [`super::fill_b0_groups`]) with the `CH BH`
 /// accumulators in registers for the whole row. Per block: its palette, one load from the
-/// table of every endpoint pair (`pairs`, [`super::bc4_palette`]), its 16
+/// table of every endpoint pair (`pairs`, [`super::palette::bc4_palette`]), its 16
 /// values picked as [`bc4_values_avx512`] picks them, and per channel one
 /// multiply and one add (not fused: the portable path's `acc += v · b`,
 /// so the same bits). The palettes of the blocks `PAIR_AHEAD` columns on
