@@ -31,7 +31,7 @@
 //! | [`runtime`] (the CPU frame, the reference; [`runtime::open`] is where an embedding application starts) | `core`, `bakefile` |
 //! | [`gl`] (the GPU frame, one file per pass paired with `glsl/<pass>.*`) | `core`, `bakefile`, `runtime` (its definitions: views, images, emission, the gather's column flags) |
 //! | [`viewer`] (the window) | `core`, `runtime`, `gl` |
-//! | [`reference`] (our path tracer on the original triangles) | `core` |
+//! | [`mod@reference`] (our path tracer on the original triangles) | `core` |
 //! | [`mitsuba`] (the Mitsuba 3 export and its reference images) | `core`, `runtime` (the albedo textures and PFM writer, so the exported `ρ(x)` is the one shaded) |
 //! | [`bench`](mod@bench) | everything |
 //! | [`synthetic`], [`generate`] (fixtures and bundled scenes) | `core` |

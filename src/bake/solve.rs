@@ -34,7 +34,7 @@
 //! 31 at 0.999. Every step is one call of the transfer stage's GEMM kernel
 //! on sub-matrices ([`Gemm::product_at`]); the panels are multiplied in
 //! place, one tile row or column per launch in an order that never reads
-//! what the same launch writes ([`triangular`]). The host touches only the
+//! what the same launch writes (`triangular`). The host touches only the
 //! `b × b` diagonal blocks.
 
 use crate::bake::error::BakeError;

@@ -157,7 +157,7 @@ pub mod tag {
     /// Sparse correction.
     pub const SPARSE: [u8; 4] = *b"SPRS";
     /// The matrix's column scales (present when bit 0 of the codec
-    /// descriptor's flags is set: [`CODEC_FLAG_COLUMN_SCALES`]).
+    /// descriptor's flags is set: [`super::CODEC_FLAG_COLUMN_SCALES`]).
     pub const COLUMN_SCALES: [u8; 4] = *b"CCOL";
     /// Mesh-to-patch map.
     pub const MESH_MAP: [u8; 4] = *b"MMAP";

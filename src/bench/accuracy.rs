@@ -78,7 +78,7 @@ pub fn compare(areas: &[f64], h: &[[f64; 3]], r: &[[f64; 3]], se: &[[f64; 3]]) -
 /// Runs the comparison for the bake at `path` lit by `config`, `paths`
 /// paths from each of `points` sample points per patch; `first` also
 /// measures the first reflection through a recomputed `F` on `selection`;
-/// `per_patch` writes one CSV row per patch (see [`write_per_patch`]);
+/// `per_patch` writes one CSV row per patch (see `write_per_patch`);
 /// `near_field` applies the bake's near-field correction (off: to measure
 /// what it does).
 pub fn run(

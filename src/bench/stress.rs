@@ -1,6 +1,6 @@
 //! `radiosity bench stress`: numerical stability of the whole bake and
 //! frame on scenes that are not kind (issue 14), generated here
-//! ([`crate::generate::stress`]) and transformed:
+//! ([`crate::generate::STRESS`], made by [`crate::generate::build`]) and transformed:
 //!
 //! - **scale**: the furnace box and the untessellated Cornell box at
 //!   1e-3, 1 and 1e4 times their size (point and spot intensities scaled

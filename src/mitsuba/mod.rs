@@ -1,7 +1,7 @@
 //! Mitsuba 3 as the independent reference (DESIGN.md section 3, measure 4):
-//! [`export`] writes a scene with its camera, lights and emission scales as
+//! [`export()`] writes a scene with its camera, lights and emission scales as
 //! a Mitsuba scene, `scripts/mitsuba-reference` renders it (its own Python
-//! environment, cached by a hash of the export), and [`reference`] reads
+//! environment, cached by a hash of the export), and [`mod@reference`] reads
 //! the images back and measures the run time's images against them, with
 //! the reference's own noise known and removed from the error.
 //!

@@ -13,7 +13,7 @@
 //!
 //! The views match the run time's ([`crate::runtime::render::View`]):
 //! direct `= le + lights`, final `= final`, indirect `= final − direct`
-//! (module doc of [`super::export`]).
+//! (module doc of [`mod@super::export`]).
 
 use std::path::{Path, PathBuf};
 

@@ -43,9 +43,9 @@
 //! on AVX-512 as BC1 does, its accumulators in registers for a row of
 //! tiles and a block's palette one load from a table of every endpoint
 //! pair. BC6H, f16 and f32 are re-laid by block column too and
-//! gathered in [`float`]: f16 and f32 at the memory's speed (one load,
+//! gathered in `float`: f16 and f32 at the memory's speed (one load,
 //! conversion and multiply-add per 16 values), BC6H from blocks unpacked at
-//! load ([`bc6h`]: its endpoints, weights and region mask, so that a frame
+//! load (`bc6h`: its endpoints, weights and region mask, so that a frame
 //! decodes each block in integer arithmetic that vectorises).
 
 use crate::bakefile::codec::decode::Codebook;
