@@ -102,7 +102,8 @@ impl ShadowMaps {
         let r = self.resolution as i32;
         let what = || {
             format!(
-                "the shadow maps: {layers} views of {r}² depth texels (points and wide spots take 6 views, other lights 1)"
+                "the shadow maps: {layers} view{} of {r}² depth texels (points and wide spots take 6 views, other lights 1)",
+                if layers == 1 { "" } else { "s" }
             )
         };
         // 4 bytes a texel (DEPTH_COMPONENT32F); saturating, as the layers
