@@ -375,10 +375,23 @@ fn a_frame_with_h_from_the_cpu_shades_that_h() {
         e < 0.02,
         "indirect view, H from the CPU against the GPU's: {e}"
     );
+    let gpu_times = r.pass_times(gl, true);
     assert!(
         !r.frame_with_h(gl, lights, scales, rt.h())
             .unwrap()
             .unchanged
+    );
+    // The GPU times shown are of passes that ran: after the GPU's frame
+    // all four; after the CPU's patch light only the shadow maps and the
+    // shading, not the GPU's earlier direct light and gather.
+    assert!(gpu_times.iter().all(Option::is_some), "{gpu_times:?}");
+    r.render(gl, &config.camera, View::Indirect, (w, h), scales)
+        .unwrap();
+    let cpu_times = r.pass_times(gl, true);
+    assert_eq!(
+        cpu_times.map(|t| t.is_some()),
+        [true, false, false, true],
+        "{cpu_times:?}"
     );
     // H of the wrong size is refused.
     let short: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; 3]);

@@ -153,10 +153,28 @@ fn patch_light_on_the_cpu_shows_what_the_gpu_computes() {
         assert!(o.status.success(), "--patch-light {mode}: {err}");
         (rgb(&png), err)
     };
+    // The last GPU times name the passes that ran on the GPU: all four, or
+    // with the CPU's patch light the shadow maps and the shading only.
+    let times = |e: &str| e.lines().last().unwrap_or("").to_string();
     let (gpu, e) = shot("gpu");
     assert!(e.contains("patch light on the GPU"), "{e}");
+    let t = times(&e);
+    assert!(
+        ["shadow maps", "direct", "gather", "shading"]
+            .iter()
+            .all(|p| t.contains(&format!("{p} "))),
+        "{t}"
+    );
     let (cpu, e) = shot("cpu");
     assert!(e.contains("patch light on the CPU"), "{e}");
+    let t = times(&e);
+    assert!(
+        t.contains("shadow maps ")
+            && t.contains("shading ")
+            && !t.contains("direct ")
+            && !t.contains("gather "),
+        "{t}"
+    );
     let (auto, e) = shot("auto");
     // `auto` keeps the faster of the two times it prints (on llvmpipe the
     // CPU, by two orders of magnitude in the gather).

@@ -671,7 +671,7 @@ fn gl_frame_table(
     options: &FrameBenchOptions,
     cpu_frame: f64,
 ) -> std::fmt::Result {
-    use crate::gl::renderer::{GlOptions, GlRenderer, Pass};
+    use crate::gl::renderer::{GlOptions, GlRenderer};
     use glow::HasContext;
     let ctx = match crate::gl::context::Headless::new() {
         Ok(c) => c,
@@ -748,11 +748,8 @@ fn gl_frame_table(
     )?;
     writeln!(out, "|---|---|---|---|")?;
     for (k, name) in crate::gl::renderer::PASSES.iter().enumerate() {
-        let with_h = if k == Pass::Direct as usize || k == Pass::Gather as usize {
-            "not run".to_string()
-        } else {
-            ms(passes_with_h[k])
-        };
+        // Direct light and the gather ran on the CPU: no GPU time.
+        let with_h = passes_with_h[k].map_or("not run".to_string(), |v| format!("{v:.3} ms"));
         writeln!(
             out,
             "| {name} | {} | {} | {with_h} |",

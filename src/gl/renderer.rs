@@ -130,6 +130,17 @@ impl Timers {
         }
     }
 
+    /// Forgets `pass`'s time and the queries still pending for it: a frame
+    /// that does not run the pass (the CPU computed it) must not show the
+    /// time of an earlier one.
+    fn forget(&mut self, pass: Pass) {
+        self.last[pass as usize] = None;
+        let (gone, keep): (Vec<_>, Vec<_>) = self.pending.drain(..).partition(|p| p.0 == pass);
+        self.pending = keep;
+        self.free
+            .extend(gone.into_iter().flat_map(|(_, q0, q1)| [q0, q1]));
+    }
+
     /// Reads the results that are ready (all of them when `wait`).
     fn poll(&mut self, gl: &glow::Context, wait: bool) {
         let mut keep = Vec::new();
@@ -424,6 +435,9 @@ impl GlRenderer {
         if stats.unchanged {
             return Ok(stats);
         }
+        // Direct light on the patches and the gather ran on the CPU.
+        self.timers.forget(Pass::Direct);
+        self.timers.forget(Pass::Gather);
         // SAFETY: uploads of n floats per channel into the gather's output
         // buffer, which holds exactly 3 n (channel-major), on the current
         // context.

@@ -233,11 +233,14 @@ pub fn run(rt: Runtime, cfg: ViewerConfig) -> Result<ViewerReport, ViewerError> 
         .map_err(|e| ViewerError::Window(e.to_string()))?;
     if let Some(state) = app.state.take() {
         let State {
-            renderer,
+            mut renderer,
             tonemap,
             gl,
             ..
         } = state;
+        // The last frame's GPU times, waited for (the title bar reads them
+        // twice a second, so a short session would report none).
+        app.report.pass_ms = renderer.pass_times(&gl, true);
         renderer.delete(&gl);
         tonemap.delete(&gl);
     }
