@@ -24,7 +24,12 @@ fn radiosity(dir: &Path, args: &[&str], display: bool) -> Output {
     let exe = env!("CARGO_BIN_EXE_radiosity");
     let mut c = if display {
         let mut c = Command::new("xvfb-run");
-        c.args(["-a", "-s", "-screen 0 640x480x24", exe]);
+        // -noreset: an X server that resets when its last client leaves
+        // signals xvfb-run (SIGUSR1) just as xvfb-run removes its
+        // temporary directory, which then fails now and again with exit
+        // status 5 ("problem while cleaning up temporary directory"), seen
+        // when the viewer quits at once (Esc).
+        c.args(["-a", "-s", "-screen 0 640x480x24 -noreset", exe]);
         c
     } else {
         Command::new(exe)
