@@ -60,6 +60,12 @@ fn difference(a: &image::RgbImage, b: &image::RgbImage) -> (i32, f64) {
     )
 }
 
+/// [`radiosity`] with its arguments given in parts (a command's own, then
+/// shared ones such as the image size), concatenated.
+fn run(dir: &Path, parts: &[&[&str]], display: bool) -> Output {
+    radiosity(dir, &parts.concat(), display)
+}
+
 fn rgb(path: &Path) -> image::RgbImage {
     image::open(path)
         .unwrap_or_else(|e| panic!("reading {}: {e}", path.display()))
@@ -72,7 +78,7 @@ fn scripted_frames_in_a_window_show_what_the_headless_renderer_draws() {
     let obj = obj.to_str().unwrap();
     let shot = dir.join("shot.png");
     let size = ["--width", "160", "--height", "120", "--patches", "800"];
-    let o = radiosity(
+    let o = run(
         &dir,
         &[
             &[
@@ -84,15 +90,14 @@ fn scripted_frames_in_a_window_show_what_the_headless_renderer_draws() {
                 shot.to_str().unwrap(),
             ],
             &size[..],
-        ]
-        .concat(),
+        ],
         true,
     );
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "view under Xvfb failed: {err}");
     assert!(err.contains("4 frames"), "{err}");
     let headless = dir.join("headless.png");
-    let o = radiosity(
+    let o = run(
         &dir,
         &[
             &[
@@ -104,8 +109,7 @@ fn scripted_frames_in_a_window_show_what_the_headless_renderer_draws() {
                 headless.to_str().unwrap(),
             ],
             &size[..],
-        ]
-        .concat(),
+        ],
         false,
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -136,7 +140,7 @@ fn patch_light_on_the_cpu_shows_what_the_gpu_computes() {
     let size = ["--width", "160", "--height", "120", "--patches", "800"];
     let shot = |mode: &str| {
         let png = dir.join(format!("{mode}.png"));
-        let o = radiosity(
+        let o = run(
             &dir,
             &[
                 &[
@@ -150,8 +154,7 @@ fn patch_light_on_the_cpu_shows_what_the_gpu_computes() {
                     png.to_str().unwrap(),
                 ],
                 &size[..],
-            ]
-            .concat(),
+            ],
             true,
         );
         let err = String::from_utf8_lossy(&o.stderr).into_owned();
@@ -254,7 +257,7 @@ fn without_a_display_the_viewer_says_so_or_renders_headless() {
         (&["--shadow-budget", "0"], "--shadow-budget 0"),
         (&["--shadow-budget", "nan"], "--shadow-budget NaN"),
     ] {
-        let o = radiosity(&dir, &[&["view", obj][..], args].concat(), false);
+        let o = run(&dir, &[&["view", obj], args], false);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
         assert!(err.contains(says), "{args:?}: {err}");
@@ -292,13 +295,12 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
     let png = |name: &str| dir.join(name).to_str().unwrap().to_string();
     // The box as bundled, and the exposure the renderer picks for it: the
     // window's later frames keep one exposure, so both sides use this one.
-    let o = radiosity(
+    let o = run(
         &dir,
         &[
             &["render", obj_s, "--backend", "gl", "-o", &png("base.png")][..],
             &size[..],
-        ]
-        .concat(),
+        ],
         false,
     );
     let err = String::from_utf8_lossy(&o.stderr);
@@ -308,7 +310,7 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
     // dimmer by 0.8; G: a sun shining ahead, also dimmed; F5 saves. 25
     // presses after frames 1–25, frame 26 shot.
     let saved = dir.join("saved.json");
-    let o = radiosity(
+    let o = run(
         &dir,
         &[
             &[
@@ -331,8 +333,7 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
                 &png("shot.png"),
             ][..],
             &size[..],
-        ]
-        .concat(),
+        ],
         true,
     );
     let err = String::from_utf8_lossy(&o.stderr);
@@ -399,7 +400,7 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
     }
     // The saved lights drawn headless at the same exposure: the window's
     // last frame, up to two GL contexts' rounding (as the first test).
-    let o = radiosity(
+    let o = run(
         &dir,
         &[
             &[
@@ -415,8 +416,7 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
                 &png("saved.png"),
             ][..],
             &size[..],
-        ]
-        .concat(),
+        ],
         false,
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -454,7 +454,7 @@ fn a_light_beyond_the_shadow_budget_is_taken_back_and_the_session_goes_on() {
     let maps = ["--shadow-resolution", "512", "--shadow-budget", "8"];
     for mode in ["gpu", "cpu"] {
         let saved = dir.join(format!("saved-{mode}.json"));
-        let o = radiosity(
+        let o = run(
             &dir,
             &[
                 &[
@@ -471,8 +471,7 @@ fn a_light_beyond_the_shadow_budget_is_taken_back_and_the_session_goes_on() {
                 ][..],
                 &size[..],
                 &maps[..],
-            ]
-            .concat(),
+            ],
             true,
         );
         let err = String::from_utf8_lossy(&o.stderr);
@@ -494,7 +493,7 @@ fn a_light_beyond_the_shadow_budget_is_taken_back_and_the_session_goes_on() {
     // the screenshot they were to end with is not there, and the exit
     // status says so.
     let shot = dir.join("never.png");
-    let o = radiosity(
+    let o = run(
         &dir,
         &[
             &[
@@ -508,8 +507,7 @@ fn a_light_beyond_the_shadow_budget_is_taken_back_and_the_session_goes_on() {
                 shot.to_str().unwrap(),
             ][..],
             &size[..],
-        ]
-        .concat(),
+        ],
         true,
     );
     let err = String::from_utf8_lossy(&o.stderr);
@@ -519,7 +517,7 @@ fn a_light_beyond_the_shadow_budget_is_taken_back_and_the_session_goes_on() {
         "{err}"
     );
     // Headless, the same budget is an error naming it.
-    let o = radiosity(
+    let o = run(
         &dir,
         &[
             &[
@@ -534,8 +532,7 @@ fn a_light_beyond_the_shadow_budget_is_taken_back_and_the_session_goes_on() {
             ][..],
             &size[..],
             &maps[..2],
-        ]
-        .concat(),
+        ],
         false,
     );
     let err = String::from_utf8_lossy(&o.stderr);

@@ -135,10 +135,14 @@ impl Timers {
     /// time of an earlier one.
     fn forget(&mut self, pass: Pass) {
         self.last[pass as usize] = None;
-        let (gone, keep): (Vec<_>, Vec<_>) = self.pending.drain(..).partition(|p| p.0 == pass);
-        self.pending = keep;
-        self.free
-            .extend(gone.into_iter().flat_map(|(_, q0, q1)| [q0, q1]));
+        // In place: this runs on every frame the CPU lights.
+        let free = &mut self.free;
+        self.pending.retain(|&(p, q0, q1)| {
+            if p == pass {
+                free.extend([q0, q1]);
+            }
+            p != pass
+        });
     }
 
     /// Reads the results that are ready (all of them when `wait`).
