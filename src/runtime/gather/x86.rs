@@ -27,7 +27,12 @@ pub(super) unsafe fn sparse_rgb9e5_avx2(
     use std::arch::x86_64::*;
     let shifts = _mm_setr_epi32(0, 9, 18, 0);
     let mask = _mm_setr_epi32(0x1ff, 0x1ff, 0x1ff, 0);
-    for &[a, b, jb] in runs {
+    for (i, &[a, b, jb]) in runs.iter().enumerate() {
+        if let Some(&[next, _, _]) = runs.get(i + SPARSE_PREFETCH_AHEAD) {
+            let next = next as usize;
+            _mm_prefetch::<_MM_HINT_T0>(pos.as_ptr().wrapping_add(next).cast());
+            _mm_prefetch::<_MM_HINT_T0>(packed.as_ptr().wrapping_add(next).cast());
+        }
         let (a, b) = (a as usize, b as usize);
         let b0x = &b0x[jb as usize..];
         for (&p, &w) in pos[a..b].iter().zip(&packed[a..b]) {
@@ -45,6 +50,10 @@ pub(super) unsafe fn sparse_rgb9e5_avx2(
         }
     }
 }
+
+/// How many runs ahead [`sparse_rgb9e5_avx2`] prefetches their first
+/// entries.
+const SPARSE_PREFETCH_AHEAD: usize = 4;
 
 /// How many active block columns ahead [`bc1_row_avx512`] prefetches:
 /// enough lines in flight to cover a memory latency of ~100 ns at the
