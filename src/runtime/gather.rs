@@ -475,7 +475,9 @@ impl CompressedGather {
             keys512,
             visit,
             runs,
+            wide,
         } = scratch;
+        wide.resize(256, [0.0; 4]);
         runs.clear();
         // This row's stored tiles in active tile columns, listed without
         // branches (each slot written, the count advanced by its flag):
@@ -633,6 +635,7 @@ impl CompressedGather {
             rows,
             visit,
             runs,
+            wide,
             &mut stats,
         );
         stats
@@ -793,6 +796,8 @@ struct RowScratch {
     /// The sparse part's common case: runs of entries (first, end, first
     /// column of their tile) for [`sparse_rgb9e5`] or [`sparse_values`].
     runs: Vec<[u32; 3]>,
+    /// The sparse loops' 256 rows ([`sparse::Rows`]).
+    wide: Vec<[f32; 4]>,
 }
 
 /// Lists into `out` the entries of `row_of` (a row's slots by tile

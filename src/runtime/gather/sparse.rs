@@ -157,6 +157,7 @@ impl SparseRt {
         rows: &mut [[f32; 4]],
         visit: &mut Vec<u32>,
         runs: &mut Vec<[u32; 3]>,
+        wide: &mut Vec<[f32; 4]>,
         stats: &mut GatherStats,
     ) {
         let RowInputs {
@@ -267,22 +268,49 @@ impl SparseRt {
         // 3,946 patches, one spot light, the sparse part 1.27× its share
         // of the work). Without per-entry branches, the same operations in
         // the same order as the general loop.
-        if !runs.is_empty() {
-            if !sp.rgb9e5 {
-                sparse_values(runs, &sp.pos, &sp.values, b0x, rows);
-                return;
-            }
+        if runs.is_empty() {
+            return;
+        }
+        // The rows in a 256-row buffer, so that an entry's row (a byte of
+        // its position) indexes it without a bounds check, as its column
+        // does `b0x` (padded by 256 columns) from its tile's first column:
+        // the loops' only checks are per run (the positions were built from
+        // rows and columns within the matrix, so no entry reaches past
+        // `rows`).
+        let h = rows.len();
+        let wide: &mut Rows = wide.as_mut_slice().try_into().expect("a 256-row buffer");
+        wide[..h].copy_from_slice(rows);
+        if !sp.rgb9e5 {
+            sparse_values(runs, &sp.pos, &sp.values, b0x, wide);
+        } else {
             #[cfg(target_arch = "x86_64")]
             if sparse_avx2 {
                 // SAFETY: `sparse_avx2` is set only where the CPU has AVX2.
                 unsafe {
-                    x86::sparse_rgb9e5_avx2(runs, &sp.pos, &sp.packed, &sp.exp_factor, b0x, rows);
+                    x86::sparse_rgb9e5_avx2(runs, &sp.pos, &sp.packed, &sp.exp_factor, b0x, wide);
                 }
+                rows.copy_from_slice(&wide[..h]);
                 return;
             }
-            sparse_rgb9e5(runs, &sp.pos, &sp.packed, &sp.exp_factor, b0x, rows);
+            sparse_rgb9e5(runs, &sp.pos, &sp.packed, &sp.exp_factor, b0x, wide);
         }
+        rows.copy_from_slice(&wide[..h]);
     }
+}
+
+/// Rows of a tile (at most 256) as the sparse loops index them, by the
+/// high byte of an entry's position.
+pub(super) type Rows = [[f32; 4]; 256];
+
+/// The 256 columns of `B0` (by column, channels side by side) from a
+/// tile's first column `jb`, as the sparse loops index them by the low
+/// byte of an entry's position: [`fill_b0_columns`] pads `b0x` so that
+/// this never fails.
+#[inline(always)]
+pub(super) fn tile_columns(b0x: &[[f32; 4]], jb: u32) -> &[[f32; 4]; 256] {
+    b0x[jb as usize..jb as usize + 256]
+        .try_into()
+        .expect("B0 padded by 256 columns")
 }
 
 /// The sparse part's common case (RGB9E5 values, three channels): the
@@ -297,11 +325,11 @@ fn sparse_rgb9e5(
     packed: &[u32],
     exp_factor: &[[f32; 4]; 32],
     b0x: &[[f32; 4]],
-    rows: &mut [[f32; 4]],
+    rows: &mut Rows,
 ) {
     for &[a, b, jb] in runs {
         let (a, b) = (a as usize, b as usize);
-        let b0x = &b0x[jb as usize..];
+        let b0x = tile_columns(b0x, jb);
         for (&p, &w) in pos[a..b].iter().zip(&packed[a..b]) {
             let f = &exp_factor[(w >> 27) as usize];
             let m = [
@@ -328,11 +356,11 @@ fn sparse_values(
     pos: &[u16],
     values: &[[f32; 4]],
     b0x: &[[f32; 4]],
-    rows: &mut [[f32; 4]],
+    rows: &mut Rows,
 ) {
     for &[a, b, jb] in runs {
         let (a, b) = (a as usize, b as usize);
-        let b0x = &b0x[jb as usize..];
+        let b0x = tile_columns(b0x, jb);
         for (&p, v) in pos[a..b].iter().zip(&values[a..b]) {
             let b = &b0x[(p & 0xff) as usize];
             let row = &mut rows[(p >> 8) as usize];
@@ -365,7 +393,8 @@ pub(super) fn fill_b0_columns(
     out: &mut Vec<[f32; 4]>,
 ) {
     let n = b0[0].len();
-    out.resize(n, [0.0; 4]);
+    // 256 columns of zeros past the last: [`tile_columns`].
+    out.resize(n + 256, [0.0; 4]);
     for g in active_groups(active, tile) {
         for j in 4 * g..(4 * g + 4).min(n) {
             out[j] = [b0[0][j], b0[1][j], b0[2][j], 0.0];
@@ -395,11 +424,12 @@ mod tests {
             }
         }
         let entries = 4_000;
-        let pos: Vec<u16> = (0..entries)
-            .map(|_| (((rng.next_u64() % 32) << 8) | (rng.next_u64() % 32)) as u16)
-            .collect();
+        // Rows and columns of every byte value (tiles of up to 256), rows
+        // repeated (the accumulation order matters).
+        let pos: Vec<u16> = (0..entries).map(|_| rng.next_u64() as u16).collect();
         let packed: Vec<u32> = (0..entries).map(|_| rng.next_u64() as u32).collect();
-        let b0x: Vec<[f32; 4]> = (0..40)
+        // Runs start at tile columns 0..8, so 8 + 256 columns.
+        let b0x: Vec<[f32; 4]> = (0..8 + 256)
             .map(|_| {
                 let mut v = [0.0f32; 4];
                 for x in v.iter_mut().take(3) {
@@ -408,8 +438,8 @@ mod tests {
                 v
             })
             .collect();
-        let mut a = vec![[0.25f32; 4]; 32];
-        let mut b = a.clone();
+        let mut a: Rows = [[0.25f32; 4]; 256];
+        let mut b = a;
         // Runs of every length, the last reaching the end, some columns on.
         let mut runs = Vec::new();
         let mut a0 = 0u32;

@@ -22,7 +22,7 @@ pub(super) unsafe fn sparse_rgb9e5_avx2(
     packed: &[u32],
     exp_factor: &[[f32; 4]; 32],
     b0x: &[[f32; 4]],
-    rows: &mut [[f32; 4]],
+    rows: &mut super::sparse::Rows,
 ) {
     use std::arch::x86_64::*;
     let shifts = _mm_setr_epi32(0, 9, 18, 0);
@@ -34,7 +34,7 @@ pub(super) unsafe fn sparse_rgb9e5_avx2(
             _mm_prefetch::<_MM_HINT_T0>(packed.as_ptr().wrapping_add(next).cast());
         }
         let (a, b) = (a as usize, b as usize);
-        let b0x = &b0x[jb as usize..];
+        let b0x = super::sparse::tile_columns(b0x, jb);
         for (&p, &w) in pos[a..b].iter().zip(&packed[a..b]) {
             let m = _mm_cvtepi32_ps(_mm_and_si128(
                 _mm_srlv_epi32(_mm_set1_epi32(w as i32), shifts),
