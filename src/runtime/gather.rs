@@ -77,13 +77,6 @@ pub struct ActiveColumns {
     /// visits these, not all its stored tiles, so that a gather with few
     /// active columns costs in proportion to them.
     pub tiles: Vec<u32>,
-    /// Per tile column, like `mask`: the active groups some of whose
-    /// columns are not (the sparse part reads only the active columns'
-    /// entries of these; a BC block is read whole).
-    pub partial: Vec<u64>,
-    /// Per group: bit `k` set when column `4g + k` is active or past the
-    /// last column (where nothing is stored).
-    pub columns: Vec<u8>,
 }
 
 impl ActiveColumns {
@@ -91,38 +84,24 @@ impl ActiveColumns {
     pub fn of(b0: [&[f32]; 3], tile: usize, all: bool) -> ActiveColumns {
         let n = b0[0].len();
         let groups = n.div_ceil(4);
-        let columns: Vec<u8> = (0..groups)
-            .map(|g| {
-                (0..4).fold(0u8, |m, k| {
-                    let j = 4 * g + k;
-                    let on = j >= n || all || b0.iter().any(|c| c[j] != 0.0);
-                    m | (u8::from(on) << k)
-                })
-            })
-            .collect();
-        // A group is active when one of its real columns is.
         let group: Vec<bool> = (0..groups)
-            .map(|g| columns[g] & low_bits(n - 4 * g) as u8 != 0)
+            .map(|g| all || (4 * g..(4 * g + 4).min(n)).any(|j| b0.iter().any(|c| c[j] != 0.0)))
             .collect();
         let per_tile = (tile / 4).clamp(1, 64);
-        let bits_of = |flag: &dyn Fn(usize) -> bool| -> Vec<u64> {
-            (0..groups.div_ceil(per_tile))
-                .map(|t| {
-                    (0..per_tile.min(groups - t * per_tile))
-                        .fold(0, |m, l| m | (u64::from(flag(t * per_tile + l)) << l))
-                })
-                .collect()
-        };
-        let mask = bits_of(&|g| group[g]);
-        let partial = bits_of(&|g| group[g] && columns[g] != 0xf);
+        let mask: Vec<u64> = group
+            .chunks(per_tile)
+            .map(|c| {
+                c.iter()
+                    .enumerate()
+                    .fold(0, |m, (l, &a)| m | (u64::from(a) << l))
+            })
+            .collect();
         ActiveColumns {
             active_groups: group.iter().filter(|&&a| a).count(),
             tiles: (0..mask.len() as u32)
                 .filter(|&t| mask[t as usize] != 0)
                 .collect(),
             mask,
-            partial,
-            columns,
         }
     }
 }
@@ -149,7 +128,7 @@ pub struct GatherStats {
     /// Matrix entries (positions, each with its stored channels) decoded
     /// and multiplied.
     pub entries: u64,
-    /// Sparse entries read and multiplied (only those of active columns).
+    /// Sparse entries read and multiplied (those of active column groups).
     pub sparse_entries: u64,
 }
 

@@ -23,11 +23,6 @@ pub(super) struct SparseRt {
     /// 1` entry indices, the last closing the block): a tile with some
     /// active column group reads only the entries of its active groups.
     group_start: Vec<u32>,
-    /// Per block and group: where its columns 1, 2 and 3 start, counted
-    /// from the group's start (a group holds at most `4 · tile` ≤ 1,024
-    /// entries), so that a group only some of whose columns are active
-    /// reads only their entries. Read only for such groups.
-    col_split: Vec<[u16; 3]>,
     /// Per entry: row within the tile (high byte) and column within it.
     pos: Vec<u16>,
     /// RGB9E5 words (precision RGB9E5) or values (f16 and f32: the three
@@ -109,16 +104,6 @@ impl SparseRt {
             block_start[r] = block_start[r].max(block_start[r - 1]);
         }
         group_start.resize(blocks.len() * (gpt + 1), order.len() as u32);
-        // Within a group the entries are by column, so each column's are
-        // one contiguous range.
-        let col_split = (0..blocks.len() * gpt)
-            .map(|bg| {
-                let s = group_start[bg + bg / gpt] as usize;
-                let e = group_start[bg + bg / gpt + 1] as usize;
-                let col = |x: &u16| usize::from(x & 0xff) % 4;
-                std::array::from_fn(|k| pos[s..e].partition_point(|x| col(x) <= k) as u16)
-            })
-            .collect();
         let mut block_of = vec![NONE; tps * tps];
         for tr in 0..tps {
             for bi in block_start[tr] as usize..block_start[tr + 1] as usize {
@@ -130,7 +115,6 @@ impl SparseRt {
             blocks,
             block_of,
             group_start,
-            col_split,
             pos,
             packed,
             values,
@@ -186,63 +170,34 @@ impl SparseRt {
             let tc = sp.blocks[bi].0 as usize;
             let starts = &sp.group_start[bi * (gpt + 1)..(bi + 1) * (gpt + 1)];
             stats.bytes_read += 4 * (gpt as u64 + 1);
-            let jb = (tc * tile) as u32;
-            let (mut bits, partial) = (active.mask[tc], active.partial[tc]);
-            stats.bytes_read += 6 * u64::from((bits & partial).count_ones());
-            // Entries are added in their stored order, each range joined to
-            // the one before where it continues it.
-            let mut push = |a: usize, b: usize| {
-                if a == b {
-                    return;
-                }
-                stats.bytes_read += (b - a) as u64 * entry_bytes;
-                stats.sparse_entries += (b - a) as u64;
-                match runs.last_mut() {
-                    Some(last) if last[1] as usize == a && last[2] == jb => last[1] = b as u32,
-                    _ => runs.push([a as u32, b as u32, jb]),
-                }
-            };
+            let mut bits = active.mask[tc];
             while bits != 0 {
                 let gl = bits.trailing_zeros() as usize;
-                if partial >> gl & 1 != 0 {
-                    // Only some columns active: their entries only (under
-                    // one spot light on the interior at 3,499 patches,
-                    // 41 % of the active groups' entries are in inactive
-                    // columns).
-                    bits &= bits - 1;
-                    let split = &sp.col_split[bi * gpt + gl];
-                    let s = starts[gl] as usize;
-                    let bound = [
-                        s,
-                        s + split[0] as usize,
-                        s + split[1] as usize,
-                        s + split[2] as usize,
-                        starts[gl + 1] as usize,
-                    ];
-                    let cols = active.columns[tc * gpt + gl];
-                    for k in 0..4 {
-                        if cols >> k & 1 != 0 {
-                            push(bound[k], bound[k + 1]);
-                        }
+                // The common case takes a run of consecutive active groups
+                // at once (their entries are contiguous, and in the same
+                // order): a group holds a few entries, and the cost per
+                // call showed (Sponza at 3,946 patches, every column: 2.69
+                // → 2.07–2.23 ms for the whole gather).
+                let run = if out_ch == 3 {
+                    (bits >> gl).trailing_ones() as usize
+                } else {
+                    1
+                };
+                bits &= !(low_bits(run) << gl);
+                let (a, b) = (starts[gl] as usize, starts[gl + run] as usize);
+                stats.bytes_read += (b - a) as u64 * entry_bytes;
+                stats.sparse_entries += (b - a) as u64;
+                let jb = tc * tile;
+                if out_ch == 3 {
+                    // The common case: listed, then run in one call below.
+                    if a < b {
+                        runs.push([a as u32, b as u32, jb as u32]);
                     }
                     continue;
                 }
-                // A run of consecutive groups whose columns are all active
-                // at once (their entries are contiguous, and in the same
-                // order): a group holds a few entries, and the cost per
-                // run showed (Sponza at 3,946 patches, every column: 2.69
-                // → 2.07–2.23 ms for the whole gather).
-                let run = ((bits & !partial) >> gl).trailing_ones() as usize;
-                bits &= !(low_bits(run) << gl);
-                push(starts[gl] as usize, starts[gl + run] as usize);
-            }
-        }
-        if out_ch != 3 {
-            // The general case, entry by entry.
-            for &[a, b, jb] in runs.iter() {
-                for e in a as usize..b as usize {
+                for e in a..b {
                     let p = sp.pos[e];
-                    let (r, j) = ((p >> 8) as usize, jb as usize + (p & 0xff) as usize);
+                    let (r, j) = ((p >> 8) as usize, jb + (p & 0xff) as usize);
                     let v: [f32; 3] = if sp.rgb9e5 {
                         let p = sp.packed[e];
                         let f = &sp.exp_factor[(p >> 27) as usize];
@@ -260,8 +215,6 @@ impl SparseRt {
                     }
                 }
             }
-            runs.clear();
-            return;
         }
         // The common case's runs in one call (a run holds a few entries
         // when few columns are lit, and a call per run showed: Sponza at
