@@ -76,7 +76,7 @@
 //! codec's patch count, the mesh map's indices and weights, UTF-8 and JSON.
 //! No allocation is sized by a length field before that length has been
 //! checked against the bytes actually present, and nothing panics on any
-//! input (`tests/bakefile.rs` truncates a file at every byte, flips random
+//! input (`tests/bakefile/` truncates a file at every byte, flips random
 //! bytes and feeds arbitrary bytes; `fuzz/` holds a cargo-fuzz target).
 //!
 //! **Determinism.** The same [`BakeFile`] always encodes to the same bytes:
