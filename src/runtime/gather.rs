@@ -741,6 +741,21 @@ impl CompressedGather {
     }
 }
 
+/// Rows of a tile (at most 256) as the sparse loops index them, by the
+/// high byte of an entry's position.
+type Rows = [[f32; 4]; 256];
+
+/// The 256 columns of `B0` (by column, channels side by side) from a
+/// tile's first column `jb`, as the sparse loops index them by the low
+
+
+#[inline(always)]
+fn tile_columns(b0x: &[[f32; 4]], jb: u32) -> &[[f32; 4]; 256] {
+    b0x[jb as usize..jb as usize + 256]
+        .try_into()
+        .expect("B0 padded by 256 columns")
+}
+
 /// What every row of tiles of one product reads besides the matrix.
 #[derive(Clone, Copy)]
 struct RowInputs<'a> {
@@ -775,7 +790,7 @@ struct RowScratch {
     /// The sparse part's common case: runs of entries (first, end, first
     /// column of their tile) for [`sparse_rgb9e5`] or [`sparse_values`].
     runs: Vec<[u32; 3]>,
-    /// The sparse loops' 256 rows ([`sparse::Rows`]).
+    /// The sparse loops' 256 rows ([`Rows`]).
     wide: Vec<[f32; 4]>,
 }
 

@@ -7,7 +7,10 @@
 
 #[cfg(target_arch = "x86_64")]
 use super::x86;
-use super::{active_groups, compact, low_bits, ActiveColumns, GatherStats, RowInputs, NONE};
+use super::{
+    active_groups, compact, low_bits, tile_columns, ActiveColumns, GatherStats, RowInputs, Rows,
+    NONE,
+};
 use crate::bakefile::codec::rgb9e5;
 use crate::bakefile::codec::{Encoded, SparseValues};
 
@@ -249,21 +252,6 @@ impl SparseRt {
         }
         rows.copy_from_slice(&wide[..h]);
     }
-}
-
-/// Rows of a tile (at most 256) as the sparse loops index them, by the
-/// high byte of an entry's position.
-pub(super) type Rows = [[f32; 4]; 256];
-
-/// The 256 columns of `B0` (by column, channels side by side) from a
-/// tile's first column `jb`, as the sparse loops index them by the low
-/// byte of an entry's position: [`fill_b0_columns`] pads `b0x` so that
-/// this never fails.
-#[inline(always)]
-pub(super) fn tile_columns(b0x: &[[f32; 4]], jb: u32) -> &[[f32; 4]; 256] {
-    b0x[jb as usize..jb as usize + 256]
-        .try_into()
-        .expect("B0 padded by 256 columns")
 }
 
 /// The sparse part's common case (RGB9E5 values, three channels): the

@@ -12,8 +12,8 @@ use super::palette::{bc1_keys, Bc1Table};
 /// call): the three mantissas extracted by one variable shift and
 /// converted together; the same operations per lane in the same order
 /// (mantissa times factor, times `B0`, added to the row), so the same
-/// bits. 20 instructions an entry (no bounds check: [`super::sparse::Rows`]
-/// and [`super::sparse::tile_columns`]), where the portable loop, which
+/// bits. 20 instructions an entry (no bounds check: [`super::Rows`] and
+/// [`super::tile_columns`]), where the portable loop, which
 /// the compiler vectorises only partly, took 41 with its checks (counted
 /// in the disassembly).
 #[target_feature(enable = "avx2")]
@@ -23,7 +23,7 @@ pub(super) unsafe fn sparse_rgb9e5_avx2(
     packed: &[u32],
     exp_factor: &[[f32; 4]; 32],
     b0x: &[[f32; 4]],
-    rows: &mut super::sparse::Rows,
+    rows: &mut super::Rows,
 ) {
     use std::arch::x86_64::*;
     let shifts = _mm_setr_epi32(0, 9, 18, 0);
@@ -35,7 +35,7 @@ pub(super) unsafe fn sparse_rgb9e5_avx2(
             _mm_prefetch::<_MM_HINT_T0>(packed.as_ptr().wrapping_add(next).cast());
         }
         let (a, b) = (a as usize, b as usize);
-        let b0x = super::sparse::tile_columns(b0x, jb);
+        let b0x = super::tile_columns(b0x, jb);
         for (&p, &w) in pos[a..b].iter().zip(&packed[a..b]) {
             let m = _mm_cvtepi32_ps(_mm_and_si128(
                 _mm_srlv_epi32(_mm_set1_epi32(w as i32), shifts),
