@@ -747,8 +747,8 @@ type Rows = [[f32; 4]; 256];
 
 /// The 256 columns of `B0` (by column, channels side by side) from a
 /// tile's first column `jb`, as the sparse loops index them by the low
-
-
+/// byte of an entry's position: [`sparse::fill_b0_columns`] pads `b0x`
+/// so that this never fails.
 #[inline(always)]
 fn tile_columns(b0x: &[[f32; 4]], jb: u32) -> &[[f32; 4]; 256] {
     b0x[jb as usize..jb as usize + 256]
