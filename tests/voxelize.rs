@@ -432,6 +432,63 @@ fn fine_grids_use_memory_proportional_to_occupied_voxels() {
     assert!(err.contains("too small"), "{err}");
 }
 
+/// A scene whose area is small for its extent (forty strips 10 units long
+/// and 10⁻⁶ wide, spread over 10 units): the area alone suggests voxels
+/// of 1.4 × 10⁻³, a grid of 7,000 along an axis, more than `Grid::new`
+/// allows. The search used to fail there ("voxel size … is too small for
+/// this scene") although the target is reached at coarser voxels; it now
+/// starts from the finest grid allowed and goes on from there.
+#[test]
+fn patch_count_search_starts_within_the_grid_limit_for_thin_strips() {
+    let strips: Vec<Quad> = (0..40)
+        .map(|k| {
+            let y = 0.25 * k as f64;
+            quad(
+                [0.0, y, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                10.0,
+                1e-6,
+                [0.5; 3],
+            )
+        })
+        .collect();
+    let scene = scene::load(&write_quads("strips", &strips)).unwrap();
+    let first_guess = (scene.surface_area() / 300.0).sqrt();
+    assert!(
+        voxelize_at(&scene, first_guess, &Backend::Cpu).is_err(),
+        "the area's first guess {first_guess} must lie beyond the grid limit for this test"
+    );
+    let v = voxelize::voxelize(&scene, Resolution::Patches(300), &Backend::Cpu)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let n = v.patches.len() as f64;
+    assert!(
+        (n / 300.0 - 1.0).abs() < 0.25,
+        "{n} patches for a target of 300 ({:?})",
+        v.stats.search
+    );
+    // Asked for more patches than the finest grid holds, the search stops
+    // at the finest grid instead of failing.
+    let v = voxelize::voxelize(&scene, Resolution::Patches(10_000_000), &Backend::Cpu)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let finest = v
+        .stats
+        .search
+        .iter()
+        .map(|s| s.0)
+        .fold(f64::INFINITY, f64::min);
+    let (lo, hi) = scene.bounds();
+    let extent = (0..3).map(|a| (hi[a] - lo[a]) as f64).fold(0.0, f64::max);
+    assert!(v.grid.dims.iter().all(|&d| d <= 4096), "{:?}", v.grid.dims);
+    assert!(v.grid.dims.iter().any(|&d| d > 4000), "{:?}", v.grid.dims);
+    assert!(
+        finest <= extent / 4000.0,
+        "finest voxel {finest}: {:?}",
+        v.stats.search
+    );
+    assert!(v.patches.len() > 10_000, "{} patches", v.patches.len());
+}
+
 #[test]
 fn patch_count_search_reaches_the_target() {
     let scene = scene::load(&common::bundled("cornell_box")).unwrap();

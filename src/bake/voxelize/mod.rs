@@ -292,7 +292,18 @@ pub fn voxelize(
             // 1,941 → 1,228 from 5.8 to 13.7 m, p ≈ 0.5, where assuming 2
             // stopped 23 % above a target of 1,000). A few passes reach
             // ±5 %.
-            let mut size = (scene.surface_area() / target as f64).sqrt();
+            // The finest voxel the grid holds (`Grid::new`: the extent
+            // over the size, plus up to 4 voxels of rounding and padding,
+            // at most MAX_DIM): a scene whose area is small for its extent
+            // (thin strips, slivers, wires, objects far apart) gets a first
+            // guess finer than that, and the search goes on from the
+            // finest grid instead of stopping at a refused one.
+            let (lo, hi) = scene.bounds();
+            let extent = (0..3)
+                .map(|a| hi[a] as f64 - lo[a] as f64)
+                .fold(0.0, f64::max);
+            let finest = extent / (crate::core::patch::MAX_DIM as f64 - 8.0);
+            let mut size = (scene.surface_area() / target as f64).sqrt().max(finest);
             let mut search = Vec::new();
             let mut best: Option<Voxelization> = None;
             // A pass is taken only if the share of the scene's area it
@@ -309,7 +320,7 @@ pub fn voxelize(
                 |v: &Voxelization| v.stats.covered_area / v.stats.scene_area.max(f64::MIN_POSITIVE);
             let err_of = |v: &Voxelization| (v.stats.patches as f64 / target as f64 - 1.0).abs();
             let mut least = f64::INFINITY;
-            for _ in 0..6 {
+            for _ in 0..8 {
                 let v = voxelize_at(scene, size, backend)?;
                 search.push((size, v.stats.patches));
                 least = least.min(share(&v));
@@ -325,13 +336,21 @@ pub fn voxelize(
                 }
                 if empty {
                     // No count to correct from: smaller voxels.
-                    size *= 0.25;
+                    if size <= finest {
+                        break;
+                    }
+                    size = (size * 0.25).max(finest);
                     continue;
                 }
                 if ok && err < 0.05 {
                     break;
                 }
-                size *= search_step(&search, target);
+                let step = search_step(&search, target);
+                if step < 1.0 && size <= finest {
+                    // More patches are asked for than the finest grid gives.
+                    break;
+                }
+                size = (size * step).max(finest);
             }
             let mut best = best.expect("at least one pass ran");
             best.stats.search = search;
