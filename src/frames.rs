@@ -178,7 +178,7 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
         radiosity::runtime::tonemap::write_pfm(hdr, img.width, img.height, &img.radiance)
             .with_context(|| format!("writing {}", hdr.display()))?;
     }
-    eprintln!("{summary}; exposure {exposure:.4}");
+    eprintln!("{summary}; exposure {}", exact(exposure));
     println!("{}", args.output.display());
     Ok(())
 }
@@ -354,6 +354,18 @@ pub(crate) fn write_png(
     Ok(exposure)
 }
 
+/// `x` in the shortest decimal that reads back as the same f32 (with an
+/// exponent outside [10⁻⁴, 10⁶)): a printed exposure given back to
+/// `--exposure` reproduces the image exactly, where four decimals printed
+/// 0.0000 for the exposure of a light of 10³⁰ W/sr.
+fn exact(x: f32) -> String {
+    if x == 0.0 || (1e-4..1e6).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// An image of `width × height` pixels must have between 1 and 2^26
 /// (8192²: 0.8 GB of linear radiance), the product taken without overflow.
 pub(crate) fn check_image_size(width: usize, height: usize) -> anyhow::Result<()> {
@@ -476,7 +488,7 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
                 budget,
             )?;
             let exposure = write_png(png, &img, args.exposure)?;
-            eprintln!("{summary}; exposure {exposure:.4}");
+            eprintln!("{summary}; exposure {}", exact(exposure));
             println!("{}", png.display());
             return Ok(());
         }

@@ -420,6 +420,41 @@ fn render_bakes_or_reuses_and_writes_png_and_pfm() {
     let o = run(&["--view", "indirect"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("reusing"), "{}", stderr(&o));
+    // The exposure printed, given back with --exposure, draws the same
+    // PNG, also far from 1: under a light of 10³⁴ W/sr (four decimals had
+    // printed 0.0000, which --exposure refuses).
+    let bright = dir.join("bright.json");
+    let json = std::fs::read_to_string(dir.join("cornell_box.json")).unwrap();
+    assert!(json.contains("73863.81"), "the bundled spot's intensity");
+    std::fs::write(&bright, json.replace("73863.81", "7.386381e34")).unwrap();
+    for lights in [None, Some(bright.to_str().unwrap())] {
+        let extra: Vec<&str> = lights.map_or(vec![], |l| vec!["--camera-lights", l]);
+        let o = run(&extra);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let e = stderr(&o);
+        let printed = e
+            .rsplit("exposure ")
+            .next()
+            .and_then(|t| t.split_whitespace().next())
+            .unwrap_or_else(|| panic!("no exposure printed: {e}"))
+            .to_string();
+        let k: f32 = printed.parse().unwrap_or_else(|_| panic!("{printed:?}"));
+        assert!(k > 0.0 && k.is_finite(), "{printed}");
+        if lights.is_some() {
+            assert!(
+                k < 1e-20,
+                "a light of 1e34 W/sr needs a tiny exposure: {printed}"
+            );
+        }
+        let first = std::fs::read(&png).unwrap();
+        let again = [extra.as_slice(), &["--exposure", &printed]].concat();
+        let o = run(&again);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(
+            first == std::fs::read(&png).unwrap(),
+            "--exposure {printed} drew another image"
+        );
+    }
     // `auto` renders on GL where GL runs on a GPU, on the CPU where GL is
     // software (llvmpipe here) and says so.
     let o = run(&["--backend", "auto"]);
