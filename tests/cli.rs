@@ -431,13 +431,7 @@ fn render_bakes_or_reuses_and_writes_png_and_pfm() {
         let extra: Vec<&str> = lights.map_or(vec![], |l| vec!["--camera-lights", l]);
         let o = run(&extra);
         assert!(o.status.success(), "{}", stderr(&o));
-        let e = stderr(&o);
-        let printed = e
-            .rsplit("exposure ")
-            .next()
-            .and_then(|t| t.split_whitespace().next())
-            .unwrap_or_else(|| panic!("no exposure printed: {e}"))
-            .to_string();
+        let printed = common::printed_exposure(&stderr(&o));
         let k: f32 = printed.parse().unwrap_or_else(|_| panic!("{printed:?}"));
         assert!(k > 0.0 && k.is_finite(), "{printed}");
         if lights.is_some() {

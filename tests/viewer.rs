@@ -264,16 +264,6 @@ fn without_a_display_the_viewer_says_so_or_renders_headless() {
     }
 }
 
-/// The exposure `radiosity render` printed ("…; exposure K").
-fn printed_exposure(stderr: &str) -> String {
-    stderr
-        .rsplit("exposure ")
-        .next()
-        .and_then(|t| t.split_whitespace().next())
-        .unwrap_or_else(|| panic!("no exposure printed: {stderr}"))
-        .to_string()
-}
-
 /// Keys pressed in the window (`--keys`, as a user presses them) edit the
 /// lights: the lights F5 saves are the edits the keys name, and the
 /// window's last frame is what the headless renderer draws from the saved
@@ -305,7 +295,7 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
     );
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
-    let exposure = printed_exposure(&err);
+    let exposure = common::printed_exposure(&err);
     // B: a spot at the camera looking ahead; two steps left; ten times
     // dimmer by 0.8; G: a sun shining ahead, also dimmed; F5 saves. 25
     // presses after frames 1–25, frame 26 shot.

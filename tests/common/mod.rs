@@ -137,3 +137,14 @@ pub fn bake_to(mut config: BakeConfig, out: &Path) -> (Baked, BakeOutput) {
     let report = bake::run(&config, &mut |_| {}).expect("bake");
     (Baked::load(out).unwrap(), report)
 }
+
+/// The exposure `radiosity render` (or the headless view) printed on
+/// stderr ("…; exposure K").
+pub fn printed_exposure(stderr: &str) -> String {
+    stderr
+        .rsplit("exposure ")
+        .next()
+        .and_then(|t| t.split_whitespace().next())
+        .unwrap_or_else(|| panic!("no exposure printed: {stderr}"))
+        .to_string()
+}

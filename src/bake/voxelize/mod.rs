@@ -274,6 +274,12 @@ pub fn voxelize(
     resolution: Resolution,
     backend: &Backend,
 ) -> Result<Voxelization, BakeError> {
+    // The scene's largest extent: the finest grid the search may ask for,
+    // and the scale an error without patches reports.
+    let (lo, hi) = scene.bounds();
+    let extent = (0..3)
+        .map(|a| hi[a] as f64 - lo[a] as f64)
+        .fold(0.0, f64::max);
     let v = match resolution {
         Resolution::VoxelSize(size) => voxelize_at(scene, size, backend)?,
         Resolution::Patches(target) => {
@@ -298,10 +304,6 @@ pub fn voxelize(
             // (thin strips, slivers, wires, objects far apart) gets a first
             // guess finer than that, and the search goes on from the
             // finest grid instead of stopping at a refused one.
-            let (lo, hi) = scene.bounds();
-            let extent = (0..3)
-                .map(|a| hi[a] as f64 - lo[a] as f64)
-                .fold(0.0, f64::max);
             let finest = extent / (crate::core::patch::MAX_DIM as f64 - 8.0);
             let mut size = (scene.surface_area() / target as f64).sqrt().max(finest);
             let mut search = Vec::new();
@@ -358,14 +360,13 @@ pub fn voxelize(
         }
     };
     if v.stats.patches == 0 {
-        let (lo, hi) = scene.bounds();
         return Err(BakeError::NoPatches {
             voxel_size: v.stats.voxel_size,
             pieces: v.stats.pieces,
             covered: v.stats.covered_pieces,
             slivers: v.stats.sliver_pieces,
             gap: COVER_GAP,
-            extent: (0..3).map(|a| (hi[a] - lo[a]) as f64).fold(0.0, f64::max),
+            extent,
         });
     }
     Ok(v)

@@ -238,16 +238,13 @@ impl SparseRt {
         wide[..h].copy_from_slice(rows);
         if !sp.rgb9e5 {
             sparse_values(runs, &sp.pos, &sp.values, b0x, wide);
-        } else {
+        } else if cfg!(target_arch = "x86_64") && sparse_avx2 {
             #[cfg(target_arch = "x86_64")]
-            if sparse_avx2 {
-                // SAFETY: `sparse_avx2` is set only where the CPU has AVX2.
-                unsafe {
-                    x86::sparse_rgb9e5_avx2(runs, &sp.pos, &sp.packed, &sp.exp_factor, b0x, wide);
-                }
-                rows.copy_from_slice(&wide[..h]);
-                return;
+            // SAFETY: `sparse_avx2` is set only where the CPU has AVX2.
+            unsafe {
+                x86::sparse_rgb9e5_avx2(runs, &sp.pos, &sp.packed, &sp.exp_factor, b0x, wide);
             }
+        } else {
             sparse_rgb9e5(runs, &sp.pos, &sp.packed, &sp.exp_factor, b0x, wide);
         }
         rows.copy_from_slice(&wide[..h]);
