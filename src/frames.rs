@@ -145,6 +145,9 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
     if !(1..=16).contains(&args.samples) {
         bail!("--samples {}: expected 1..=16", args.samples);
     }
+    if !(0.0..1.0).contains(&args.cull) {
+        bail!("--cull {}: expected a fraction in [0, 1)", args.cull);
+    }
     check_exposure(args.exposure)?;
     check_image_size(args.width, args.height)?;
     let budget = shadow_budget(args.shadow_budget)?;
@@ -161,6 +164,7 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
     )?;
     let options = RuntimeOptions {
         samples: args.samples,
+        cull: args.cull,
         ..RuntimeOptions::default()
     };
     let mut rt = Runtime::new(baked, scene, options);
@@ -408,6 +412,9 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
     if !(1..=16).contains(&args.samples) {
         bail!("--samples {}: expected 1..=16", args.samples);
     }
+    if !(0.0..1.0).contains(&args.cull) {
+        bail!("--cull {}: expected a fraction in [0, 1)", args.cull);
+    }
     if !(16..=radiosity::gl::shadow::MAX_RESOLUTION).contains(&args.shadow_resolution) {
         bail!(
             "--shadow-resolution {}: expected 16..={}",
@@ -468,6 +475,7 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
         scene,
         RuntimeOptions {
             samples: args.samples,
+            cull: args.cull,
             ..RuntimeOptions::default()
         },
     );

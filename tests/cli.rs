@@ -466,6 +466,14 @@ fn render_bakes_or_reuses_and_writes_png_and_pfm() {
     let o = run(&["--samples", "0"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("--samples"), "{}", stderr(&o));
+    // Culling: a fraction in [0, 1), negative numbers and NaN refused.
+    for bad in ["nan", "-0.5", "1", "inf"] {
+        let o = run(&["--cull", bad]);
+        assert_eq!(o.status.code(), Some(1), "{bad}");
+        assert!(stderr(&o).contains("--cull"), "{bad}: {}", stderr(&o));
+    }
+    let o = run(&["--cull", "0.001"]);
+    assert!(o.status.success(), "{}", stderr(&o));
     // An image whose pixel count overflows (2^32 × 2^32 wrapped to 0 and
     // passed the check, then a row took 48 GB) or exceeds 2^26 is refused
     // (before any bake).

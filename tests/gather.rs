@@ -575,3 +575,114 @@ fn grey_matrix_alike_on_both_paths(scales: [f32; 3]) {
         assert_eq!(differ, scales[1] != scales[0], "{name}");
     }
 }
+
+/// `T̃`'s column sums of magnitudes, read tile by tile, are those of the
+/// decoded matrix for every codec, with column scales too: the same f32
+/// values summed in f64 (each sum within `n · ε₆₄` of exact), the scale
+/// applied once per column in f64 where the decode rounds it into each
+/// entry in f32 (at most `u` apart per entry).
+#[test]
+fn column_sums_are_those_of_the_decoded_matrix_for_every_codec() {
+    let (t, _, n) = problem(8, 2, false);
+    let s: Vec<f32> = (0..n)
+        .map(|j| 10f32.powf(-3.0 * ((j * 37) % n) as f32 / n as f32))
+        .collect();
+    let u = f32::EPSILON as f64 / 2.0;
+    let tol = u + 2.0 * n as f64 * f64::EPSILON;
+    for (name, kind) in kinds() {
+        let plain = encode::encode(kind, refs(&t), n).unwrap();
+        let mut scaled = plain.clone();
+        scaled.col_scale = s.clone();
+        for e in [plain, scaled] {
+            let sums = e.column_sums();
+            let d = e.decode();
+            for c in 0..3 {
+                for j in 0..n {
+                    let expected: f64 = (0..n).map(|i| (d[c][i * n + j] as f64).abs()).sum();
+                    assert!(
+                        (sums[c][j] - expected).abs() <= tol * expected,
+                        "{name} scaled {}: column {j} channel {c}: {} vs {expected}",
+                        !e.col_scale.is_empty(),
+                        sums[c][j]
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Culling negligible columns ([`ActiveColumns::culled`]): it keeps a
+/// subset of the lit groups, fewer as `eps` grows, dropping the lightest
+/// first; the dropped groups' bound is at most `eps` of the total; the
+/// product it gives differs from the exact one by at most that bound in
+/// L1 (plus both products' f32 rounding, `γ_n` of the total each, and
+/// the decode tables' `4 u`: [`bound`]); and at `eps = 0` it is the exact
+/// skipping, bit for bit. Light spanning six decades, so that some columns
+/// are negligible, on every codec and both paths.
+#[test]
+fn culling_drops_the_lightest_columns_within_its_bound() {
+    let (t, mut b0, n) = problem(8, 2, false);
+    for c in &mut b0 {
+        for (j, v) in c.iter_mut().enumerate() {
+            *v *= 10f32.powf(-6.0 * ((j * 53) % n) as f32 / n as f32);
+        }
+    }
+    let b = refs(&b0);
+    for (name, kind) in kinds() {
+        let e = encode::encode(kind, refs(&t), n).unwrap();
+        let weights = e.column_sums();
+        let tile = e.index.tile;
+        let exact = ActiveColumns::of(b, tile, false);
+        let bc4 = matches!(e.format, DenseFormat::Bc4);
+        let group_mass = |g: usize| -> f64 {
+            (4 * g..(4 * g + 4).min(n))
+                .map(|j| (0..3).map(|c| weights[c][j] * (b[c][j] as f64).abs()).sum::<f64>())
+                .sum()
+        };
+        let kept = |a: &ActiveColumns, g: usize| a.mask[g / (tile / 4)] >> (g % (tile / 4)) & 1 == 1;
+        for simd in [false, true] {
+            let g = CompressedGather::new(&e, simd);
+            let mut h_exact: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+            g.gather(b, &exact, &mut h_exact);
+            let mut last = usize::MAX;
+            for eps in [0.0, 1e-4, 1e-3, 1e-2, 0.1] {
+                let cu = ActiveColumns::culled(b, tile, &weights, eps);
+                let a = &cu.columns;
+                assert!(a.active_groups <= last, "{name}: fewer groups as eps grows");
+                last = a.active_groups;
+                assert_eq!(a.active_groups + cu.culled_groups, exact.active_groups, "{name}");
+                assert!(cu.dropped_mass <= eps * cu.mass, "{name} eps {eps}");
+                let (mut dropped_max, mut kept_min) = (0.0f64, f64::INFINITY);
+                for grp in 0..n.div_ceil(4) {
+                    assert!(!kept(a, grp) || kept(&exact, grp), "{name}: only lit groups kept");
+                    if kept(&exact, grp) {
+                        if kept(a, grp) {
+                            kept_min = kept_min.min(group_mass(grp));
+                        } else {
+                            dropped_max = dropped_max.max(group_mass(grp));
+                        }
+                    }
+                }
+                assert!(dropped_max <= kept_min, "{name} eps {eps}: the lightest go first");
+                let mut h: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+                g.gather(b, a, &mut h);
+                if eps == 0.0 {
+                    assert_eq!(a, &exact, "{name}: every column of T̃ is non-zero here");
+                    assert_eq!(h, h_exact, "{name} simd {simd}: eps 0 is exact");
+                    continue;
+                }
+                let diff: f64 = (0..3)
+                    .flat_map(|c| (0..n).map(move |i| (c, i)))
+                    .map(|(c, i)| (h[c][i] as f64 - h_exact[c][i] as f64).abs())
+                    .sum();
+                let slack = 2.0 * bound(n, bc4) * cu.mass;
+                assert!(
+                    diff <= cu.dropped_mass + slack,
+                    "{name} simd {simd} eps {eps}: L1 difference {diff} > bound {} + {slack}",
+                    cu.dropped_mass
+                );
+            }
+            assert!(last < exact.active_groups, "{name}: eps 0.1 drops some groups");
+        }
+    }
+}

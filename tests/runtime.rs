@@ -291,6 +291,71 @@ fn incremental_frames_equal_a_full_product_after_100_light_moves() {
     }
 }
 
+/// Culling negligible columns in frames (`RuntimeOptions::cull`): over
+/// 60 moves of three spot lights, the cached run time equals one that
+/// recomputes every term, bit for bit (each term is a fresh culled
+/// product, so nothing drifts); against the exact run time, `H` differs
+/// by at most the dropped groups' bound in L1, summed over the terms
+/// (plus f32 rounding: `γ_n` of the bound's total per product, and the
+/// sum of terms); and culling does drop columns.
+#[test]
+fn culled_frames_stay_within_their_bound_without_drift() {
+    let obj = common::bundled_copy("cornell_box", "rt-cull");
+    let (exact, _) = bake(&obj, Resolution::VoxelSize(60.0), CodecKind::default());
+    let with = |cull: f64, cache: bool| {
+        Runtime::new(
+            exact.baked.clone(),
+            exact.scene.clone(),
+            RuntimeOptions {
+                cull,
+                cache,
+                ..RuntimeOptions::default()
+            },
+        )
+    };
+    let eps = 1e-3;
+    let (mut cached, mut fresh, mut exact) = (with(eps, true), with(eps, false), with(0.0, true));
+    let n = exact.n();
+    let u = f32::EPSILON as f64 / 2.0;
+    let g = n as f64 * u / (1.0 - n as f64 * u);
+    let mut rng = SplitMix64::new(5);
+    let mut lights: Vec<Light> = (0..3)
+        .map(|_| point([278.0, 400.0, 279.0], 20000.0))
+        .collect();
+    let mut culled = 0;
+    for step in 0..60 {
+        lights[step % 3] = Light::Spot {
+            position: [
+                50.0 + 450.0 * rng.uniform() as f32,
+                50.0 + 450.0 * rng.uniform() as f32,
+                50.0 + 450.0 * rng.uniform() as f32,
+            ],
+            direction: [rng.uniform() as f32 - 0.5, -1.0, rng.uniform() as f32 - 0.5],
+            intensity: [30000.0, 20000.0, 10000.0],
+            cone_angle_deg: 20.0 + 40.0 * rng.uniform() as f32,
+            beam_angle_deg: 10.0,
+        };
+        cached.frame(&lights, &BTreeMap::new());
+        let s = fresh.frame(&lights, &BTreeMap::new());
+        exact.frame(&lights, &BTreeMap::new());
+        assert_eq!(cached.h(), fresh.h(), "step {step}: cached against recomputed");
+        assert!(s.gather.culled_mass <= eps * s.gather.mass, "step {step}");
+        culled += s.gather.culled_groups;
+        let diff: f64 = (0..3)
+            .flat_map(|c| (0..n).map(move |j| (c, j)))
+            .map(|(c, j)| (cached.h()[c][j] as f64 - exact.h()[c][j] as f64).abs())
+            .sum();
+        let total: f64 = exact.h().iter().flatten().map(|&v| (v as f64).abs()).sum();
+        let slack = 2.0 * g * s.gather.mass + 8.0 * u * total;
+        assert!(
+            diff <= s.gather.culled_mass + slack,
+            "step {step}: L1 difference {diff} > bound {} + {slack}",
+            s.gather.culled_mass
+        );
+    }
+    assert!(culled > 0, "culling dropped no column in 60 frames");
+}
+
 #[test]
 fn cornell_box_wall_next_to_the_red_wall_receives_more_red_on_pixels() {
     let obj = common::bundled_copy("cornell_box", "rt-cornell");

@@ -521,6 +521,34 @@ pub fn run(
             1e3 * ts_all,
             gb(&ss, ts_lit) / 1e9
         )?;
+        // The same light with negligible columns culled at the viewer's
+        // default: its time against the every-column gather, and the
+        // error it adds against the exact spot product just timed.
+        let eps = crate::runtime::VIEWER_CULL;
+        let t0 = Instant::now();
+        let weights = rt.column_weights();
+        let t_weights = t0.elapsed().as_secs_f64();
+        let culled = ActiveColumns::culled(sr, tile, weights, eps);
+        let mut h3 = h2.clone();
+        let ((_, tc_all), (_, tc_lit)) = best_alternating(
+            options.repeat,
+            || rt.gather.gather(sr, &sall, &mut h),
+            || rt.gather.gather(sr, &culled.columns, &mut h3),
+        );
+        let (rms, l1) = relative_errors(&h2, &h3);
+        writeln!(
+            spot_row,
+            "| that spot light, negligible columns culled (ε = {eps}: {:.1} % of column groups, {} dropped; `T̃`'s column sums {:.1} ms, once) | {:.3} ms | {:.2}× faster than every column ({:.3} ms); H against the exact product: {:.3} % RMS, {:.4} % L1 (bound {:.4} %) |",
+            100.0 * culled.columns.active_groups as f64 / sall.active_groups.max(1) as f64,
+            culled.culled_groups,
+            1e3 * t_weights,
+            1e3 * tc_lit,
+            tc_all / tc_lit,
+            1e3 * tc_all,
+            100.0 * rms,
+            100.0 * l1,
+            100.0 * culled.dropped_fraction(),
+        )?;
         // What a frame computes for that light: with the bake's near-field
         // correction, `c` and `δ` from its lit points and the gather of
         // `B0 + δ + ρ ∘ c`, whose `ρ ∘ c` lights the lit patches'
@@ -538,6 +566,28 @@ pub fn run(
                 1e3 * tf_lit,
                 tf_all / tf_lit,
                 1e3 * tf_all,
+            )?;
+            // The frame's term with culling, as the viewer runs it.
+            let (h_exact, _, _) = rt.light_product_over(sb0, spot_points, false);
+            rt.options.cull = eps;
+            let ((_, tg_all), ((h_cull, st, groups), tg_lit)) = best_alternating(
+                options.repeat,
+                || rt.light_product_over(sb0, spot_points, true),
+                || rt.light_product_over(sb0, spot_points, false),
+            );
+            rt.options.cull = 0.0;
+            let (rms, l1) = relative_errors(&h_exact, &h_cull);
+            writeln!(
+                spot_row,
+                "| that term with negligible columns culled (ε = {eps}: {:.1} % of column groups, {} dropped) | {:.3} ms | {:.2}× faster than over every column ({:.3} ms); H against the exact term: {:.3} % RMS, {:.4} % L1 (bound {:.4} %) |",
+                100.0 * groups as f64 / sall.active_groups.max(1) as f64,
+                st.culled_groups,
+                1e3 * tg_lit,
+                tg_all / tg_lit,
+                1e3 * tg_all,
+                100.0 * rms,
+                100.0 * l1,
+                100.0 * st.culled_mass / st.mass.max(f64::MIN_POSITIVE),
             )?;
         }
     }
@@ -891,4 +941,21 @@ mod tests {
             }
         }
     }
+}
+
+/// `b`'s relative RMS and L1 differences from `a` over every patch and
+/// channel (0 where `a` is all zero).
+fn relative_errors(a: &[Vec<f32>; 3], b: &[Vec<f32>; 3]) -> (f64, f64) {
+    let (mut d2, mut a2, mut d1, mut a1) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    for (ac, bc) in a.iter().zip(b) {
+        for (&x, &y) in ac.iter().zip(bc) {
+            let d = f64::from(y) - f64::from(x);
+            d2 += d * d;
+            a2 += f64::from(x) * f64::from(x);
+            d1 += d.abs();
+            a1 += f64::from(x).abs();
+        }
+    }
+    let ratio = |d: f64, a: f64| if a > 0.0 { d / a } else { 0.0 };
+    (ratio(d2.sqrt(), a2.sqrt()), ratio(d1, a1))
 }

@@ -87,6 +87,63 @@ impl ActiveColumns {
         let group: Vec<bool> = (0..groups)
             .map(|g| all || (4 * g..(4 * g + 4).min(n)).any(|j| b0.iter().any(|c| c[j] != 0.0)))
             .collect();
+        ActiveColumns::from_groups(&group, tile)
+    }
+
+    /// The active groups of `b0` less its negligible ones: with `weights`
+    /// the column sums of `T̃` per channel ([`Encoded::column_sums`]),
+    /// group `g` carries at most `e_g = Σ_{j ∈ g} Σ_c s_cj |b0_cj|` of the
+    /// product's L1 norm (`s` sums magnitudes). The groups are
+    /// dropped from the smallest `e_g` up (ties by index, so the choice is
+    /// deterministic) while the dropped `e_g` sum to at most `eps` times
+    /// their total `E`, so `‖T̃ b0 − T̃ b0_kept‖₁ ≤ eps · E` (a bound on the
+    /// product's part lost, before f32 rounding; `E ≥ ‖T̃ b0‖₁`, with
+    /// equality when `T̃` and `b0` are ≥ 0, as they are but for the
+    /// near-field correction's `δ`). Groups whose columns of `T̃` are all zero
+    /// (`e_g = 0`) go for free. With `eps = 0`, exactly [`Self::of`]'s
+    /// groups less those: the same product bit for bit (each dropped term
+    /// is `0 · b`).
+    pub fn culled(b0: [&[f32]; 3], tile: usize, weights: &[Vec<f64>; 3], eps: f64) -> Culled {
+        let n = b0[0].len();
+        let groups = n.div_ceil(4);
+        let mut lit = 0usize;
+        let mut mass: Vec<(f64, u32)> = Vec::new();
+        for g in 0..groups {
+            let cols = 4 * g..(4 * g + 4).min(n);
+            if !cols.clone().any(|j| b0.iter().any(|c| c[j] != 0.0)) {
+                continue;
+            }
+            lit += 1;
+            let e: f64 = cols
+                .map(|j| (0..3).map(|c| weights[c][j] * f64::from(b0[c][j]).abs()).sum::<f64>())
+                .sum();
+            mass.push((e, g as u32));
+        }
+        let total: f64 = mass.iter().map(|m| m.0).sum();
+        mass.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let budget = eps.max(0.0) * total;
+        let mut dropped = 0.0f64;
+        let mut group = vec![false; groups];
+        for &(e, g) in &mass {
+            // A NaN mass (a NaN in `b0`) is never dropped: it sorts last
+            // and fails the comparison.
+            if e == 0.0 || dropped + e <= budget {
+                dropped += e;
+            } else {
+                group[g as usize] = true;
+            }
+        }
+        let columns = ActiveColumns::from_groups(&group, tile);
+        Culled {
+            culled_groups: lit - columns.active_groups,
+            dropped_mass: dropped,
+            mass: total,
+            columns,
+        }
+    }
+
+    /// The columns of the groups flagged in `group`.
+    fn from_groups(group: &[bool], tile: usize) -> ActiveColumns {
         let per_tile = (tile / 4).clamp(1, 64);
         let mask: Vec<u64> = group
             .chunks(per_tile)
@@ -102,6 +159,31 @@ impl ActiveColumns {
                 .filter(|&t| mask[t as usize] != 0)
                 .collect(),
             mask,
+        }
+    }
+}
+
+/// [`ActiveColumns::culled`]'s choice.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Culled {
+    /// The groups kept.
+    pub columns: ActiveColumns,
+    /// Groups with a non-zero `b0` that were dropped.
+    pub culled_groups: usize,
+    /// The dropped groups' bound on the product's L1 norm (at most `eps`
+    /// times `mass`), and the bound's total `E`.
+    pub dropped_mass: f64,
+    pub mass: f64,
+}
+
+impl Culled {
+    /// The dropped groups' bound as a fraction of the total (0 when
+    /// nothing is lit).
+    pub fn dropped_fraction(&self) -> f64 {
+        if self.mass > 0.0 {
+            self.dropped_mass / self.mass
+        } else {
+            0.0
         }
     }
 }
@@ -130,17 +212,27 @@ pub struct GatherStats {
     pub entries: u64,
     /// Sparse entries read and multiplied (those of active column groups).
     pub sparse_entries: u64,
+    /// Set by the run time's culling of negligible columns
+    /// ([`ActiveColumns::culled`], through `Runtime::product_over`; 0 from
+    /// the gather itself): column groups with a non-zero input dropped,
+    /// their bound on the product's L1 norm, and the bound's total.
+    pub culled_groups: u64,
+    pub culled_mass: f64,
+    pub mass: f64,
 }
 
 impl GatherStats {
     /// The stats of two parts of a product together.
-    fn add(self, o: GatherStats) -> GatherStats {
+    pub fn add(self, o: GatherStats) -> GatherStats {
         GatherStats {
             bytes_read: self.bytes_read + o.bytes_read,
             tiles_touched: self.tiles_touched + o.tiles_touched,
             tiles_skipped: self.tiles_skipped + o.tiles_skipped,
             entries: self.entries + o.entries,
             sparse_entries: self.sparse_entries + o.sparse_entries,
+            culled_groups: self.culled_groups + o.culled_groups,
+            culled_mass: self.culled_mass + o.culled_mass,
+            mass: self.mass + o.mass,
         }
     }
 }

@@ -155,6 +155,74 @@ impl Encoded {
             .collect()
     }
 
+    /// Per channel, each column's sum of magnitudes `s_j = Σ_i |T̃_ij|` of
+    /// the matrix as the run time sees it ([`decode`]: dense tiles, sparse
+    /// part, column scales), in f64, without decoding the whole matrix at
+    /// once: a row of tiles at a time, each thread summing into its own
+    /// columns. `s_j · |x_j|` bounds the L1 norm of the product's part
+    /// from column `j`: the run time's culling of negligible columns uses
+    /// it. (Entries are ≥ 0 but for a transfer matrix's round-off; the
+    /// magnitudes keep the bound whatever their signs.) A grey matrix's
+    /// one channel three times.
+    pub fn column_sums(&self) -> [Vec<f64>; 3] {
+        let n = self.n;
+        let book = self.codebook();
+        let s = self.image_size;
+        let tile = self.index.tile;
+        let ch = self.channels;
+        let mut sums = (0..self.index.tiles_per_side)
+            .into_par_iter()
+            .fold(
+                || (vec![0.0f64; ch * n], vec![0.0f32; tile * tile * ch]),
+                |(mut sums, mut buf), tr| {
+                    let r0 = tr * tile;
+                    let h = tile.min(s - r0);
+                    let rows = h.min(n.saturating_sub(r0));
+                    let (a, b) = (
+                        self.index.row_start[tr] as usize,
+                        self.index.row_start[tr + 1] as usize,
+                    );
+                    for slot in a..b {
+                        let c0 = self.index.cols[slot] as usize * tile;
+                        let w = tile.min(s - c0);
+                        self.decode_tile(&book, slot, h, w, &mut buf);
+                        let cols = w.min(n.saturating_sub(c0));
+                        for r in 0..rows {
+                            for c in 0..cols {
+                                for k in 0..ch {
+                                    sums[k * n + c0 + c] +=
+                                        f64::from(buf[(r * w + c) * ch + k]).abs();
+                                }
+                            }
+                        }
+                    }
+                    (sums, buf)
+                },
+            )
+            .map(|(sums, _)| sums)
+            .reduce(
+                || vec![0.0f64; ch * n],
+                |mut a, b| {
+                    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                    a
+                },
+            );
+        let sp = &self.sparse;
+        for (e, &j) in sp.cols.iter().enumerate() {
+            for k in 0..ch {
+                sums[k * n + j as usize] += f64::from(sp.values[e * ch + k]).abs();
+            }
+        }
+        if !self.col_scale.is_empty() {
+            for k in 0..ch {
+                for (v, &sc) in sums[k * n..(k + 1) * n].iter_mut().zip(&self.col_scale) {
+                    *v *= f64::from(sc).abs();
+                }
+            }
+        }
+        std::array::from_fn(|c| sums[c.min(ch - 1) * n..(c.min(ch - 1) + 1) * n].to_vec())
+    }
+
     /// The tables and scales the decoder needs.
     pub fn codebook(&self) -> Codebook {
         let mut lut = [[0.0f32; 256]; 3];
