@@ -393,7 +393,12 @@ pub(crate) struct RenderArgs {
     /// least weight whose bound on H's L1 norm sums to at most this
     /// fraction (0..1). 0, the default for this reference renderer: only
     /// zero columns are skipped, exact to the bit.
-    #[arg(long, value_name = "EPS", default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "EPS",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     pub(crate) cull: f64,
     /// Target patch count when baking a scene.
     #[arg(long, default_value_t = 2000)]

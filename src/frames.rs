@@ -314,8 +314,18 @@ pub(crate) fn draw_headless(
             let albedo = Albedo::new(&rt.scene);
             let fs = rt.frame(&config.lights, &config.emission);
             let (img, rs) = render(rt, config, view, width, height, &albedo);
+            let culled = if rt.options.cull > 0.0 {
+                format!(
+                    ", {} culled at --cull {}, dropping at most {:.4} % of the gathers' L1 mass",
+                    fs.gather.culled_groups,
+                    rt.options.cull,
+                    100.0 * fs.gather.culled_mass / fs.gather.mass.max(f64::MIN_POSITIVE)
+                )
+            } else {
+                String::new()
+            };
             let s = format!(
-                "cpu: {} patches, direct {:.3} s, near field {:.3} s, gather {:.3} s ({} bytes read, {:.1} % of column groups active); image {}×{} in {:.3} s ({} back-facing pixels, {} through a nearest piece, {} unmapped)",
+                "cpu: {} patches, direct {:.3} s, near field {:.3} s, gather {:.3} s ({} bytes read, {:.1} % of column groups active{culled}); image {}×{} in {:.3} s ({} back-facing pixels, {} through a nearest piece, {} unmapped)",
                 rt.n(),
                 fs.seconds_direct,
                 fs.seconds_near_field,

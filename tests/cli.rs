@@ -701,6 +701,8 @@ fn bench_frame_prints_its_tables() {
         "| gather, every column |",
         "% of bandwidth",
         "| gather, one spot light",
+        "| that spot light, negligible columns culled",
+        "| that term with negligible columns culled",
         "GL frame on",
         "| H from the CPU run time (`view --patch-light cpu`) |",
         "+ the CPU frame",
@@ -708,5 +710,26 @@ fn bench_frame_prints_its_tables() {
         "| classic ∞ (Jacobi",
     ] {
         assert!(out.contains(row), "no {row:?} in:\n{out}");
+    }
+    // The culled rows' L1 error within their bound (both printed to 4
+    // decimals of a per cent: one unit of the last digit of slack; and
+    // the products' f32 rounding, γ_n ≈ 2·10⁻⁵ of the total at n ≈ 300).
+    for line in out
+        .lines()
+        .filter(|l| l.contains("negligible columns culled"))
+    {
+        let num = |after: &str| -> f64 {
+            let rest = &line[line
+                .find(after)
+                .unwrap_or_else(|| panic!("{after} in {line}"))
+                + after.len()..];
+            rest.split(|c: char| c != '.' && !c.is_ascii_digit())
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap()
+        };
+        let (l1, bound) = (num("RMS, "), num("(bound "));
+        assert!(l1 <= bound + 1e-4 + 2e-3, "{line}");
     }
 }

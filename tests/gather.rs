@@ -636,10 +636,15 @@ fn culling_drops_the_lightest_columns_within_its_bound() {
         let bc4 = matches!(e.format, DenseFormat::Bc4);
         let group_mass = |g: usize| -> f64 {
             (4 * g..(4 * g + 4).min(n))
-                .map(|j| (0..3).map(|c| weights[c][j] * (b[c][j] as f64).abs()).sum::<f64>())
+                .map(|j| {
+                    (0..3)
+                        .map(|c| weights[c][j] * (b[c][j] as f64).abs())
+                        .sum::<f64>()
+                })
                 .sum()
         };
-        let kept = |a: &ActiveColumns, g: usize| a.mask[g / (tile / 4)] >> (g % (tile / 4)) & 1 == 1;
+        let kept =
+            |a: &ActiveColumns, g: usize| a.mask[g / (tile / 4)] >> (g % (tile / 4)) & 1 == 1;
         for simd in [false, true] {
             let g = CompressedGather::new(&e, simd);
             let mut h_exact: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
@@ -650,11 +655,18 @@ fn culling_drops_the_lightest_columns_within_its_bound() {
                 let a = &cu.columns;
                 assert!(a.active_groups <= last, "{name}: fewer groups as eps grows");
                 last = a.active_groups;
-                assert_eq!(a.active_groups + cu.culled_groups, exact.active_groups, "{name}");
+                assert_eq!(
+                    a.active_groups + cu.culled_groups,
+                    exact.active_groups,
+                    "{name}"
+                );
                 assert!(cu.dropped_mass <= eps * cu.mass, "{name} eps {eps}");
                 let (mut dropped_max, mut kept_min) = (0.0f64, f64::INFINITY);
                 for grp in 0..n.div_ceil(4) {
-                    assert!(!kept(a, grp) || kept(&exact, grp), "{name}: only lit groups kept");
+                    assert!(
+                        !kept(a, grp) || kept(&exact, grp),
+                        "{name}: only lit groups kept"
+                    );
                     if kept(&exact, grp) {
                         if kept(a, grp) {
                             kept_min = kept_min.min(group_mass(grp));
@@ -663,7 +675,10 @@ fn culling_drops_the_lightest_columns_within_its_bound() {
                         }
                     }
                 }
-                assert!(dropped_max <= kept_min, "{name} eps {eps}: the lightest go first");
+                assert!(
+                    dropped_max <= kept_min,
+                    "{name} eps {eps}: the lightest go first"
+                );
                 let mut h: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
                 g.gather(b, a, &mut h);
                 if eps == 0.0 {
@@ -682,7 +697,10 @@ fn culling_drops_the_lightest_columns_within_its_bound() {
                     cu.dropped_mass
                 );
             }
-            assert!(last < exact.active_groups, "{name}: eps 0.1 drops some groups");
+            assert!(
+                last < exact.active_groups,
+                "{name}: eps 0.1 drops some groups"
+            );
         }
     }
 }

@@ -338,7 +338,11 @@ fn culled_frames_stay_within_their_bound_without_drift() {
         cached.frame(&lights, &BTreeMap::new());
         let s = fresh.frame(&lights, &BTreeMap::new());
         exact.frame(&lights, &BTreeMap::new());
-        assert_eq!(cached.h(), fresh.h(), "step {step}: cached against recomputed");
+        assert_eq!(
+            cached.h(),
+            fresh.h(),
+            "step {step}: cached against recomputed"
+        );
         assert!(s.gather.culled_mass <= eps * s.gather.mass, "step {step}");
         culled += s.gather.culled_groups;
         let diff: f64 = (0..3)

@@ -535,7 +535,7 @@ pub fn run(
             || rt.gather.gather(sr, &sall, &mut h),
             || rt.gather.gather(sr, &culled.columns, &mut h3),
         );
-        let (rms, l1) = relative_errors(&h2, &h3);
+        let (rms, l1, norm) = relative_errors(&h2, &h3);
         writeln!(
             spot_row,
             "| that spot light, negligible columns culled (ε = {eps}: {:.1} % of column groups, {} dropped; `T̃`'s column sums {:.1} ms, once) | {:.3} ms | {:.2}× faster than every column ({:.3} ms); H against the exact product: {:.3} % RMS, {:.4} % L1 (bound {:.4} %) |",
@@ -547,7 +547,7 @@ pub fn run(
             1e3 * tc_all,
             100.0 * rms,
             100.0 * l1,
-            100.0 * culled.dropped_fraction(),
+            100.0 * culled.dropped_mass / norm.max(f64::MIN_POSITIVE),
         )?;
         // What a frame computes for that light: with the bake's near-field
         // correction, `c` and `δ` from its lit points and the gather of
@@ -576,7 +576,7 @@ pub fn run(
                 || rt.light_product_over(sb0, spot_points, false),
             );
             rt.options.cull = 0.0;
-            let (rms, l1) = relative_errors(&h_exact, &h_cull);
+            let (rms, l1, norm) = relative_errors(&h_exact, &h_cull);
             writeln!(
                 spot_row,
                 "| that term with negligible columns culled (ε = {eps}: {:.1} % of column groups, {} dropped) | {:.3} ms | {:.2}× faster than over every column ({:.3} ms); H against the exact term: {:.3} % RMS, {:.4} % L1 (bound {:.4} %) |",
@@ -587,7 +587,7 @@ pub fn run(
                 1e3 * tg_all,
                 100.0 * rms,
                 100.0 * l1,
-                100.0 * st.culled_mass / st.mass.max(f64::MIN_POSITIVE),
+                100.0 * st.culled_mass / norm.max(f64::MIN_POSITIVE),
             )?;
         }
     }
@@ -944,8 +944,11 @@ mod tests {
 }
 
 /// `b`'s relative RMS and L1 differences from `a` over every patch and
-/// channel (0 where `a` is all zero).
-fn relative_errors(a: &[Vec<f32>; 3], b: &[Vec<f32>; 3]) -> (f64, f64) {
+/// channel (0 where `a` is all zero), and `a`'s L1 norm: culling's bound
+/// on the L1 difference, over that norm, is the bound on the relative L1
+/// difference (the bound's own total `E` differs from `‖a‖₁` where the
+/// input has negative values, as `δ` does, or `c` is added after).
+fn relative_errors(a: &[Vec<f32>; 3], b: &[Vec<f32>; 3]) -> (f64, f64, f64) {
     let (mut d2, mut a2, mut d1, mut a1) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for (ac, bc) in a.iter().zip(b) {
         for (&x, &y) in ac.iter().zip(bc) {
@@ -957,5 +960,5 @@ fn relative_errors(a: &[Vec<f32>; 3], b: &[Vec<f32>; 3]) -> (f64, f64) {
         }
     }
     let ratio = |d: f64, a: f64| if a > 0.0 { d / a } else { 0.0 };
-    (ratio(d2.sqrt(), a2.sqrt()), ratio(d1, a1))
+    (ratio(d2.sqrt(), a2.sqrt()), ratio(d1, a1), a1)
 }

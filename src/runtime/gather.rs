@@ -115,7 +115,11 @@ impl ActiveColumns {
             }
             lit += 1;
             let e: f64 = cols
-                .map(|j| (0..3).map(|c| weights[c][j] * f64::from(b0[c][j]).abs()).sum::<f64>())
+                .map(|j| {
+                    (0..3)
+                        .map(|c| weights[c][j] * f64::from(b0[c][j]).abs())
+                        .sum::<f64>()
+                })
                 .sum();
             mass.push((e, g as u32));
         }

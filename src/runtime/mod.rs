@@ -261,8 +261,7 @@ impl Runtime {
     /// `T̃`'s column sums per channel, the culling's weights (computed at
     /// the first call unless [`Runtime::new`] did).
     pub fn column_weights(&self) -> &[Vec<f64>; 3] {
-        self.weights
-            .get_or_init(|| self.baked.matrix.column_sums())
+        self.weights.get_or_init(|| self.baked.matrix.column_sums())
     }
 
     /// The near-field weights for `m` lit points per patch, as this run
