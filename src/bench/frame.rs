@@ -886,6 +886,26 @@ fn gl_gather_row(
     row
 }
 
+/// `b`'s relative RMS and L1 differences from `a` over every patch and
+/// channel (0 where `a` is all zero), and `a`'s L1 norm: culling's bound
+/// on the L1 difference, over that norm, is the bound on the relative L1
+/// difference (the bound's own total `E` differs from `‖a‖₁` where the
+/// input has negative values, as `δ` does, or `c` is added after).
+fn relative_errors(a: &[Vec<f32>; 3], b: &[Vec<f32>; 3]) -> (f64, f64, f64) {
+    let (mut d2, mut a2, mut d1, mut a1) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    for (ac, bc) in a.iter().zip(b) {
+        for (&x, &y) in ac.iter().zip(bc) {
+            let d = f64::from(y) - f64::from(x);
+            d2 += d * d;
+            a2 += f64::from(x) * f64::from(x);
+            d1 += d.abs();
+            a1 += f64::from(x).abs();
+        }
+    }
+    let ratio = |d: f64, a: f64| if a > 0.0 { d / a } else { 0.0 };
+    (ratio(d2.sqrt(), a2.sqrt()), ratio(d1, a1), a1)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -941,24 +961,4 @@ mod tests {
             }
         }
     }
-}
-
-/// `b`'s relative RMS and L1 differences from `a` over every patch and
-/// channel (0 where `a` is all zero), and `a`'s L1 norm: culling's bound
-/// on the L1 difference, over that norm, is the bound on the relative L1
-/// difference (the bound's own total `E` differs from `‖a‖₁` where the
-/// input has negative values, as `δ` does, or `c` is added after).
-fn relative_errors(a: &[Vec<f32>; 3], b: &[Vec<f32>; 3]) -> (f64, f64, f64) {
-    let (mut d2, mut a2, mut d1, mut a1) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
-    for (ac, bc) in a.iter().zip(b) {
-        for (&x, &y) in ac.iter().zip(bc) {
-            let d = f64::from(y) - f64::from(x);
-            d2 += d * d;
-            a2 += f64::from(x) * f64::from(x);
-            d1 += d.abs();
-            a1 += f64::from(x).abs();
-        }
-    }
-    let ratio = |d: f64, a: f64| if a > 0.0 { d / a } else { 0.0 };
-    (ratio(d2.sqrt(), a2.sqrt()), ratio(d1, a1), a1)
 }

@@ -227,7 +227,7 @@ pub struct GatherStats {
 
 impl GatherStats {
     /// The stats of two parts of a product together.
-    pub fn add(self, o: GatherStats) -> GatherStats {
+    fn add(self, o: GatherStats) -> GatherStats {
         GatherStats {
             bytes_read: self.bytes_read + o.bytes_read,
             tiles_touched: self.tiles_touched + o.tiles_touched,
