@@ -170,8 +170,12 @@ impl Encoded {
         let s = self.image_size;
         let tile = self.index.tile;
         let ch = self.channels;
+        // A few leaves per thread: each fold leaf holds its own sums (8 n
+        // bytes a channel), so their number is kept small.
+        let leaf = (self.index.tiles_per_side / (4 * rayon::current_num_threads())).max(1);
         let mut sums = (0..self.index.tiles_per_side)
             .into_par_iter()
+            .with_min_len(leaf)
             .fold(
                 || (vec![0.0f64; ch * n], vec![0.0f32; tile * tile * ch]),
                 |(mut sums, mut buf), tr| {
