@@ -702,5 +702,15 @@ fn culling_drops_the_lightest_columns_within_its_bound() {
                 "{name}: eps 0.1 drops some groups"
             );
         }
+        // An input that overflowed culls nothing: every lit group stays.
+        let mut inf = b0.clone();
+        let j = inf[0].iter().position(|&v| v != 0.0).unwrap();
+        inf[0][j] = f32::INFINITY;
+        let cu = ActiveColumns::culled(refs(&inf), tile, &weights, 0.1);
+        assert_eq!(
+            cu.columns,
+            ActiveColumns::of(refs(&inf), tile, false),
+            "{name}"
+        );
     }
 }

@@ -125,7 +125,15 @@ impl ActiveColumns {
         }
         let total: f64 = mass.iter().map(|m| m.0).sum();
         mass.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let budget = eps.max(0.0) * total;
+        // An infinite or NaN total (an input that overflowed) culls
+        // nothing but zero columns: its product is not finite either, and
+        // dropping a group of infinite mass within an infinite budget
+        // would turn it into zeros.
+        let budget = if total.is_finite() {
+            eps.max(0.0) * total
+        } else {
+            0.0
+        };
         let mut dropped = 0.0f64;
         let mut group = vec![false; groups];
         for &(e, g) in &mass {
