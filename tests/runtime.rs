@@ -358,6 +358,12 @@ fn culled_frames_stay_within_their_bound_without_drift() {
         );
     }
     assert!(culled > 0, "culling dropped no column in 60 frames");
+    // Culling switched off between frames: the cached terms, culled, are
+    // recomputed, and the frame is the exact one.
+    cached.options.cull = 0.0;
+    let s = cached.frame(&lights, &BTreeMap::new());
+    assert_eq!(s.terms_computed, 4, "the emission and the three lights");
+    assert_eq!(cached.h(), exact.h());
 }
 
 #[test]

@@ -32,7 +32,9 @@
 //! may also drop its lightest column groups, by `T̃`'s column sums times
 //! the input's magnitude, within a stated fraction of its L1 norm
 //! ([`ActiveColumns::culled`]); the frame's stats sum what was dropped.
-//! Terms stay fresh products, so culling does not drift either.
+//! Terms stay fresh products, so culling does not drift either; a frame
+//! after the culling (or the sample-point) option changed recomputes
+//! every term.
 //!
 //! Evaluating `H` at pixels ([`surface`]) and shading them ([`render`],
 //! [`tonemap`]) complete the frame.
@@ -178,6 +180,9 @@ pub struct Runtime {
     b0: [Vec<f32>; 3],
     h: [Vec<f32>; 3],
     frames: u64,
+    /// The options the cached terms were computed with (culling, sample
+    /// points): a frame after either changed recomputes every term.
+    cached_with: (f64, usize),
 }
 
 impl Runtime {
@@ -211,6 +216,7 @@ impl Runtime {
             b0: std::array::from_fn(|_| vec![0.0; n]),
             h: std::array::from_fn(|_| vec![0.0; n]),
             frames: 0,
+            cached_with: (options.cull, options.samples),
             baked,
             scene,
         }
@@ -350,7 +356,10 @@ impl Runtime {
         let n = self.n();
         let groups = n.div_ceil(4);
         let mut stats = FrameStats::default();
-        let cache = self.options.cache;
+        // Terms computed with other options are not reused.
+        let with = (self.options.cull, self.options.samples);
+        let cache = self.options.cache && self.cached_with == with;
+        self.cached_with = with;
         let per_term = lights_per_term(lights.len(), n, self.options.term_cache_bytes);
         let mut changed =
             !cache || self.frames == 0 || self.terms.len() != lights.len().div_ceil(per_term);
