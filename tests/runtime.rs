@@ -364,6 +364,22 @@ fn culled_frames_stay_within_their_bound_without_drift() {
     let s = cached.frame(&lights, &BTreeMap::new());
     assert_eq!(s.terms_computed, 4, "the emission and the three lights");
     assert_eq!(cached.h(), exact.h());
+    // Fewer sample points after the run time was made: recomputed with the
+    // near-field weights of that count, as a run time made with it.
+    for samples in [2, 16, 8] {
+        cached.options.samples = samples;
+        cached.frame(&lights, &BTreeMap::new());
+        let mut made_with = Runtime::new(
+            exact.baked.clone(),
+            exact.scene.clone(),
+            RuntimeOptions {
+                samples,
+                ..RuntimeOptions::default()
+            },
+        );
+        made_with.frame(&lights, &BTreeMap::new());
+        assert_eq!(cached.h(), made_with.h(), "{samples} sample points");
+    }
 }
 
 #[test]

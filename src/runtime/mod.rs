@@ -64,7 +64,9 @@ use std::time::Instant;
 /// Options of the CPU run time.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RuntimeOptions {
-    /// Sample points per patch for direct light (1..=16).
+    /// Sample points per patch for direct light (1..=16; read at each
+    /// frame: a change recomputes every term, and the near-field weights
+    /// follow it).
     pub samples: usize,
     /// Skip zero columns of `B0` (off only to measure what it saves: the
     /// result is the same bit for bit).
@@ -356,10 +358,16 @@ impl Runtime {
         let n = self.n();
         let groups = n.div_ceil(4);
         let mut stats = FrameStats::default();
-        // Terms computed with other options are not reused.
+        // Terms computed with other options are not reused, and the
+        // near-field weights follow the sample points lit (their count
+        // indexes the points' irradiance).
         let with = (self.options.cull, self.options.samples);
         let cache = self.options.cache && self.cached_with == with;
         self.cached_with = with;
+        let m = self.options.samples.clamp(1, bakefile_samples());
+        if self.near.m != m {
+            self.near = near_weights(&self.baked, !self.near.is_empty(), m);
+        }
         let per_term = lights_per_term(lights.len(), n, self.options.term_cache_bytes);
         let mut changed =
             !cache || self.frames == 0 || self.terms.len() != lights.len().div_ceil(per_term);
@@ -452,6 +460,11 @@ impl Runtime {
 
 /// The near-field weights of `baked` for `m` lit points (none when `on` is
 /// false).
+/// Sample points per patch a bake stores: the most a frame lights.
+fn bakefile_samples() -> usize {
+    crate::bakefile::surface::SAMPLES_PER_PATCH
+}
+
 fn near_weights(baked: &Baked, on: bool, m: usize) -> NearFieldWeights {
     let none = Default::default();
     let nf = if on { &baked.near_field } else { &none };
