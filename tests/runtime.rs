@@ -379,6 +379,20 @@ fn culled_frames_stay_within_their_bound_without_drift() {
         );
         made_with.frame(&lights, &BTreeMap::new());
         assert_eq!(cached.h(), made_with.h(), "{samples} sample points");
+        // One light's term from points lit with that count, asked of a run
+        // time whose weights are for another (`exact`'s default): the same.
+        let (d_points, d) = radiosity::runtime::direct::irradiance(
+            &exact.baked,
+            &exact.direct,
+            &lights[..1],
+            samples,
+        );
+        let b0 = radiosity::runtime::direct::reflected(&exact.baked, &d);
+        assert_eq!(
+            exact.light_product(&b0, &d_points).0,
+            made_with.light_product(&b0, &d_points).0,
+            "{samples} sample points, one term"
+        );
     }
 }
 

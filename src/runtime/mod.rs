@@ -312,9 +312,19 @@ impl Runtime {
     /// The near-field correction (`c` and `δ`) of a term whose direct
     /// light at the lit points is `d_points` (`None` when the bake has
     /// none).
+    ///
+    /// `d_points` holds `m` points per patch; lit with another count than
+    /// the run time's weights (the sample-point option changed since the
+    /// last frame), the weights of `m` points are made for this call.
     pub fn near_correction(&self, d_points: &[Vec<f32>; 3]) -> Option<NearTerms> {
         if self.near.is_empty() {
             return None;
+        }
+        let n = self.n().max(1);
+        let m = d_points[0].len() / n;
+        if m != self.near.m && d_points[0].len() == m * n && (1..=bakefile_samples()).contains(&m) {
+            let near = near_weights(&self.baked, true, m);
+            return Some(near.correction_reflected(d_points, &self.baked.patches));
         }
         Some(
             self.near
