@@ -61,6 +61,21 @@ fn box_inward(s: [f64; 3], a: f64) -> Vec<Quad> {
     q
 }
 
+/// A coloured spot somewhere in the Cornell box, pointing down-ish.
+fn cornell_spot(rng: &mut SplitMix64) -> Light {
+    Light::Spot {
+        position: [
+            50.0 + 450.0 * rng.uniform() as f32,
+            50.0 + 450.0 * rng.uniform() as f32,
+            50.0 + 450.0 * rng.uniform() as f32,
+        ],
+        direction: [rng.uniform() as f32 - 0.5, -1.0, rng.uniform() as f32 - 0.5],
+        intensity: [30000.0, 20000.0, 10000.0],
+        cone_angle_deg: 20.0 + 40.0 * rng.uniform() as f32,
+        beam_angle_deg: 10.0,
+    }
+}
+
 fn point(p: [f32; 3], i: f32) -> Light {
     Light::Point {
         position: p,
@@ -247,17 +262,7 @@ fn incremental_frames_equal_a_full_product_after_100_light_moves() {
     let u = f32::EPSILON as f64 / 2.0;
     for step in 0..100 {
         let k = step % 3;
-        lights[k] = Light::Spot {
-            position: [
-                50.0 + 450.0 * rng.uniform() as f32,
-                50.0 + 450.0 * rng.uniform() as f32,
-                50.0 + 450.0 * rng.uniform() as f32,
-            ],
-            direction: [rng.uniform() as f32 - 0.5, -1.0, rng.uniform() as f32 - 0.5],
-            intensity: [30000.0, 20000.0, 10000.0],
-            cone_angle_deg: 20.0 + 40.0 * rng.uniform() as f32,
-            beam_angle_deg: 10.0,
-        };
+        lights[k] = cornell_spot(&mut rng);
         let s = rt.frame(&lights, &BTreeMap::new());
         if step > 0 {
             assert_eq!(s.terms_computed, 1, "only the moved light is recomputed");
@@ -324,17 +329,7 @@ fn culled_frames_stay_within_their_bound_without_drift() {
         .collect();
     let mut culled = 0;
     for step in 0..60 {
-        lights[step % 3] = Light::Spot {
-            position: [
-                50.0 + 450.0 * rng.uniform() as f32,
-                50.0 + 450.0 * rng.uniform() as f32,
-                50.0 + 450.0 * rng.uniform() as f32,
-            ],
-            direction: [rng.uniform() as f32 - 0.5, -1.0, rng.uniform() as f32 - 0.5],
-            intensity: [30000.0, 20000.0, 10000.0],
-            cone_angle_deg: 20.0 + 40.0 * rng.uniform() as f32,
-            beam_angle_deg: 10.0,
-        };
+        lights[step % 3] = cornell_spot(&mut rng);
         cached.frame(&lights, &BTreeMap::new());
         let s = fresh.frame(&lights, &BTreeMap::new());
         exact.frame(&lights, &BTreeMap::new());

@@ -98,27 +98,18 @@ impl Encoded {
                 let h = tile.min(s - r0);
                 let mut acc = vec![vec![[A::default(); 3]; h]; k];
                 let mut buf = vec![0.0f32; tile * tile * ch];
-                let (a, b) = (
-                    self.index.row_start[tr] as usize,
-                    self.index.row_start[tr + 1] as usize,
-                );
-                for slot in a..b {
-                    let c0 = self.index.cols[slot] as usize * tile;
-                    let w = tile.min(s - c0);
-                    self.decode_tile(&book, slot, h, w, &mut buf);
-                    let rows = h.min(n.saturating_sub(r0));
-                    let cols = w.min(n.saturating_sub(c0));
+                self.each_tile_of_row(&book, tr, &mut buf, |t, buf| {
                     for (acc_s, b0) in acc.iter_mut().zip(b0s) {
-                        for (r, acc_r) in acc_s.iter_mut().enumerate().take(rows) {
-                            for c in 0..cols {
-                                let v = &buf[(r * w + c) * ch..(r * w + c + 1) * ch];
+                        for (r, acc_r) in acc_s.iter_mut().enumerate().take(t.rows) {
+                            for c in 0..t.cols {
+                                let v = &buf[(r * t.w + c) * ch..(r * t.w + c + 1) * ch];
                                 for (oc, out) in acc_r.iter_mut().enumerate() {
-                                    *out += A::from(v[oc.min(ch - 1)]) * A::from(b0[oc][c0 + c]);
+                                    *out += A::from(v[oc.min(ch - 1)]) * A::from(b0[oc][t.c0 + c]);
                                 }
                             }
                         }
                     }
-                }
+                });
                 acc
             })
             .collect();
@@ -167,7 +158,6 @@ impl Encoded {
     pub fn column_sums(&self) -> [Vec<f64>; 3] {
         let n = self.n;
         let book = self.codebook();
-        let s = self.image_size;
         let tile = self.index.tile;
         let ch = self.channels;
         // A few leaves per thread: each fold leaf holds its own sums (8 n
@@ -179,27 +169,16 @@ impl Encoded {
             .fold(
                 || (vec![0.0f64; ch * n], vec![0.0f32; tile * tile * ch]),
                 |(mut sums, mut buf), tr| {
-                    let r0 = tr * tile;
-                    let h = tile.min(s - r0);
-                    let rows = h.min(n.saturating_sub(r0));
-                    let (a, b) = (
-                        self.index.row_start[tr] as usize,
-                        self.index.row_start[tr + 1] as usize,
-                    );
-                    for slot in a..b {
-                        let c0 = self.index.cols[slot] as usize * tile;
-                        let w = tile.min(s - c0);
-                        self.decode_tile(&book, slot, h, w, &mut buf);
-                        let cols = w.min(n.saturating_sub(c0));
-                        for r in 0..rows {
-                            for c in 0..cols {
+                    self.each_tile_of_row(&book, tr, &mut buf, |t, buf| {
+                        for r in 0..t.rows {
+                            for c in 0..t.cols {
                                 for k in 0..ch {
-                                    sums[k * n + c0 + c] +=
-                                        f64::from(buf[(r * w + c) * ch + k]).abs();
+                                    sums[k * n + t.c0 + c] +=
+                                        f64::from(buf[(r * t.w + c) * ch + k]).abs();
                                 }
                             }
                         }
-                    }
+                    });
                     (sums, buf)
                 },
             )
@@ -225,6 +204,29 @@ impl Encoded {
             }
         }
         std::array::from_fn(|c| sums[c.min(ch - 1) * n..(c.min(ch - 1) + 1) * n].to_vec())
+    }
+
+    /// Decodes the stored tiles of row of tiles `tr`, in order, each into
+    /// `buf` (texel-major, `channels` values a texel), and calls `f` with
+    /// its place ([`TilePlace`]).
+    fn each_tile_of_row(
+        &self,
+        book: &Codebook,
+        tr: usize,
+        buf: &mut [f32],
+        mut f: impl FnMut(TilePlace, &[f32]),
+    ) {
+        let (tile, s, n) = (self.index.tile, self.image_size, self.n);
+        let r0 = tr * tile;
+        let h = tile.min(s - r0);
+        let rows = h.min(n.saturating_sub(r0));
+        for slot in self.index.row_start[tr] as usize..self.index.row_start[tr + 1] as usize {
+            let c0 = self.index.cols[slot] as usize * tile;
+            let w = tile.min(s - c0);
+            self.decode_tile(book, slot, h, w, buf);
+            let cols = w.min(n.saturating_sub(c0));
+            f(TilePlace { c0, w, rows, cols }, buf);
+        }
     }
 
     /// The tables and scales the decoder needs.
@@ -257,6 +259,17 @@ impl Encoded {
         let len = self.format.tile_bytes(h, w, self.channels);
         decode_tile_bytes(book, &self.dense[start..start + len], h, w, out);
     }
+}
+
+/// Where a decoded tile lies ([`Encoded::each_tile_of_row`]): its first
+/// column, its width in texels, and the rows and columns of it inside the
+/// matrix (the padding past `n` left out).
+#[derive(Clone, Copy)]
+struct TilePlace {
+    c0: usize,
+    w: usize,
+    rows: usize,
+    cols: usize,
 }
 
 /// What decoding a tile needs (the encoder decodes what it wrote with it
