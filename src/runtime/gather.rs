@@ -188,18 +188,6 @@ pub struct Culled {
     pub mass: f64,
 }
 
-impl Culled {
-    /// The dropped groups' bound as a fraction of the total (0 when
-    /// nothing is lit).
-    pub fn dropped_fraction(&self) -> f64 {
-        if self.mass > 0.0 {
-            self.dropped_mass / self.mass
-        } else {
-            0.0
-        }
-    }
-}
-
 /// The `k` lowest bits set (all 64 from `k = 64` on).
 fn low_bits(k: usize) -> u64 {
     if k >= 64 {
