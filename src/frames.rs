@@ -145,9 +145,7 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
     if !(1..=16).contains(&args.samples) {
         bail!("--samples {}: expected 1..=16", args.samples);
     }
-    if !(0.0..1.0).contains(&args.cull) {
-        bail!("--cull {}: expected a fraction in [0, 1)", args.cull);
-    }
+    check_cull(args.cull)?;
     check_exposure(args.exposure)?;
     check_image_size(args.width, args.height)?;
     let budget = shadow_budget(args.shadow_budget)?;
@@ -415,6 +413,14 @@ fn check_exposure(exposure: Option<f32>) -> anyhow::Result<()> {
     }
 }
 
+/// `--cull`: a fraction in [0, 1) (NaN refused).
+fn check_cull(cull: f64) -> anyhow::Result<()> {
+    if !(0.0..1.0).contains(&cull) {
+        bail!("--cull {cull}: expected a fraction in [0, 1)");
+    }
+    Ok(())
+}
+
 /// `radiosity view`.
 pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
     use radiosity::runtime::{Runtime, RuntimeOptions};
@@ -422,9 +428,7 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
     if !(1..=16).contains(&args.samples) {
         bail!("--samples {}: expected 1..=16", args.samples);
     }
-    if !(0.0..1.0).contains(&args.cull) {
-        bail!("--cull {}: expected a fraction in [0, 1)", args.cull);
-    }
+    check_cull(args.cull)?;
     if !(16..=radiosity::gl::shadow::MAX_RESOLUTION).contains(&args.shadow_resolution) {
         bail!(
             "--shadow-resolution {}: expected 16..={}",

@@ -84,9 +84,7 @@ impl ActiveColumns {
     pub fn of(b0: [&[f32]; 3], tile: usize, all: bool) -> ActiveColumns {
         let n = b0[0].len();
         let groups = n.div_ceil(4);
-        let group: Vec<bool> = (0..groups)
-            .map(|g| all || (4 * g..(4 * g + 4).min(n)).any(|j| b0.iter().any(|c| c[j] != 0.0)))
-            .collect();
+        let group: Vec<bool> = (0..groups).map(|g| all || group_lit(b0, g)).collect();
         ActiveColumns::from_groups(&group, tile)
     }
 
@@ -109,12 +107,11 @@ impl ActiveColumns {
         let mut lit = 0usize;
         let mut mass: Vec<(f64, u32)> = Vec::new();
         for g in 0..groups {
-            let cols = 4 * g..(4 * g + 4).min(n);
-            if !cols.clone().any(|j| b0.iter().any(|c| c[j] != 0.0)) {
+            if !group_lit(b0, g) {
                 continue;
             }
             lit += 1;
-            let e: f64 = cols
+            let e: f64 = (4 * g..(4 * g + 4).min(n))
                 .map(|j| {
                     (0..3)
                         .map(|c| weights[c][j] * f64::from(b0[c][j]).abs())
@@ -173,6 +170,12 @@ impl ActiveColumns {
             mask,
         }
     }
+}
+
+/// Whether some channel of `b0` is non-zero in group `g`'s columns.
+fn group_lit(b0: [&[f32]; 3], g: usize) -> bool {
+    let n = b0[0].len();
+    (4 * g..(4 * g + 4).min(n)).any(|j| b0.iter().any(|c| c[j] != 0.0))
 }
 
 /// [`ActiveColumns::culled`]'s choice.
