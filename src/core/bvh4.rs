@@ -46,13 +46,13 @@
 //! interior at 3,499 patches 5.99 → 5.07 ms in `bench frame`; Sponza's sun
 //! no faster: its parallel rays part ways under the arcades). A leaf's
 //! triangles are tested against the packet's live lanes at once
-//! ([`intersect8`]: [`intersect`]'s operations lane by lane), where a lane
+//! (`intersect8`: [`intersect`]'s operations lane by lane), where a lane
 //! at a time had taken 15 % of the direct pass's samples in `perf`: the
 //! direct pass 5.47–5.82 → 4.88–5.23 ms on the interior at 3,499 patches,
 //! 2.66–3.04 → 2.07–2.62 ms under Sponza's sun at 3,946 (a scratch
 //! program, best of 100, old and new builds alternating, three runs).
 //! Each node then asks for the memory of every child a lane enters
-//! ([`Bvh4::prefetch_children`]) before testing any: 5.28–6.47 →
+//! (`Bvh4::prefetch_children`) before testing any: 5.28–6.47 →
 //! 4.99–5.47 ms on the interior, 2.26–3.27 → 2.02–2.44 ms under the sun.
 
 use crate::core::bvh::{intersect, slab, Bvh, STACK};
