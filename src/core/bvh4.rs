@@ -532,7 +532,8 @@ impl Bvh4 {
 
     /// Asks for the memory of `n`'s children that some lane of `rays`
     /// enters (`passes` per child): an inner child's f64 bounds and its
-    /// child slots, a leaf's binary node. A hint, no effect on results:
+    /// [`Slots`], a leaf's binary node and triangles. A hint, no effect
+    /// on results:
     /// the traversal's time went to waiting for these lines (`perf`:
     /// half the samples of the packet traversal at the loads of a node's
     /// bounds, slots, leaf node and triangles), and asking for every
