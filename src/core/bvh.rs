@@ -680,11 +680,18 @@ fn median(slice: &mut [u32], centroids: &[[f32; 3]], axis: usize) -> usize {
 /// segment parallel to and inside a slab), as `fmin`/`fmax` do in the kernel.
 /// `inv` is `1 / d` per axis.
 pub fn slab(n: &Node, o: [f64; 3], inv: [f64; 3]) -> Option<f64> {
+    slab_bounds(n.min.map(f64::from), n.max.map(f64::from), o, inv)
+}
+
+/// [`slab`] of the box `[lo, hi]` given in f64 (a node's f32 bounds
+/// widened exactly give [`slab`]'s answer).
+#[inline]
+pub fn slab_bounds(lo: [f64; 3], hi: [f64; 3], o: [f64; 3], inv: [f64; 3]) -> Option<f64> {
     let mut t0 = 0.0f64;
     let mut t1 = 1.0f64;
     for k in 0..3 {
-        let a = (n.min[k] as f64 - o[k]) * inv[k];
-        let b = (n.max[k] as f64 - o[k]) * inv[k];
+        let a = (lo[k] - o[k]) * inv[k];
+        let b = (hi[k] - o[k]) * inv[k];
         t0 = t0.max(a.min(b));
         t1 = t1.min(a.max(b));
     }

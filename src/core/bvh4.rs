@@ -60,7 +60,7 @@
 //! 4.36–4.86 ms on the interior (four of six runs faster), 1.87–2.42 →
 //! 1.70–2.38 ms under the sun (six of six).
 
-use crate::core::bvh::{intersect, slab, Bvh, STACK};
+use crate::core::bvh::{intersect, slab, slab_bounds, Bvh, STACK};
 
 /// Marks a child that is a binary leaf (its low bits are the leaf's index
 /// in [`Bvh::nodes`]); others index [`Bvh4::nodes`].
@@ -676,15 +676,8 @@ impl Bvh4 {
 /// operations on the same values, so the same answer.
 #[inline]
 fn slab_of(w: &[[[f64; 4]; 3]; 2], c: usize, o: [f64; 3], inv: [f64; 3]) -> bool {
-    let mut t0 = 0.0f64;
-    let mut t1 = 1.0f64;
-    for k in 0..3 {
-        let a = (w[0][k][c] - o[k]) * inv[k];
-        let b = (w[1][k][c] - o[k]) * inv[k];
-        t0 = t0.max(a.min(b));
-        t1 = t1.min(a.max(b));
-    }
-    t0 <= t1
+    let [lo, hi] = w.map(|b| b.map(|axis| axis[c]));
+    slab_bounds(lo, hi, o, inv).is_some()
 }
 
 /// The lanes of `lanes` whose segment (origin `ov`, direction `dv`, one
