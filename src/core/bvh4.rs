@@ -478,7 +478,7 @@ impl Bvh4 {
             let (node, rays) = stack[sp];
             let n = &self.slots[node as usize];
             let (t0s, passes) = boxes8(&self.wide[node as usize], &ov, &iv);
-            self.prefetch_children(bvh, node, &passes, rays);
+            self.prefetch_children::<true>(bvh, node, &passes, rays);
             // Children by the entry of the first live lane, nearest first.
             let lead = (rays.trailing_zeros() as usize).min(PACKET - 1);
             let mut entry = [0.0f64; 4];
@@ -532,7 +532,7 @@ impl Bvh4 {
 
     /// Asks for the memory of `n`'s children that some lane of `rays`
     /// enters (`passes` per child): an inner child's f64 bounds and its
-    /// [`Slots`], a leaf's binary node and triangles. A hint, no effect
+    /// [`Slots`], a leaf's triangles (and binary node with `LEAF_NODES`). A hint, no effect
     /// on results:
     /// the traversal's time went to waiting for these lines (`perf`:
     /// half the samples of the packet traversal at the loads of a node's
@@ -542,7 +542,13 @@ impl Bvh4 {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
     #[inline]
-    unsafe fn prefetch_children(&self, bvh: &Bvh, node: u32, passes: &[u8; 4], rays: u8) {
+    unsafe fn prefetch_children<const LEAF_NODES: bool>(
+        &self,
+        bvh: &Bvh,
+        node: u32,
+        passes: &[u8; 4],
+        rays: u8,
+    ) {
         use std::arch::x86_64::*;
         let n = &self.slots[node as usize];
         let mut v = n.valid;
@@ -554,10 +560,13 @@ impl Bvh4 {
             }
             let child = n.child[c];
             if child & LEAF != 0 {
-                // The binary leaf (which the nearest-hit traversal reads)
-                // and its triangles.
-                let p = bvh.nodes.as_ptr().wrapping_add((child & !LEAF) as usize);
-                _mm_prefetch::<_MM_HINT_T0>(p.cast());
+                // Its triangles, and the binary leaf where it is read
+                // (`LEAF_NODES`: the nearest-hit traversal; the any-hit one
+                // reads the leaf's range and bounds from this node).
+                if LEAF_NODES {
+                    let p = bvh.nodes.as_ptr().wrapping_add((child & !LEAF) as usize);
+                    _mm_prefetch::<_MM_HINT_T0>(p.cast());
+                }
                 let t = bvh.tris.as_ptr().wrapping_add(n.first[c] as usize) as *const i8;
                 let bytes = n.count[c] as usize * std::mem::size_of::<crate::core::bvh::Tri>();
                 for off in (0..bytes).step_by(64) {
@@ -586,12 +595,8 @@ impl Bvh4 {
         mask: u8,
         out: &mut [Option<(u32, u32)>; PACKET],
     ) {
-        use std::arch::x86_64::*;
         let (inv, ov, iv) = packet_lanes(o, d);
-        let dv: [__m512d; 3] = std::array::from_fn(|a| {
-            let v: [f64; PACKET] = std::array::from_fn(|k| d[k][a]);
-            _mm512_loadu_pd(v.as_ptr())
-        });
+        let dv = by_axis(d);
         let mut active = mask;
         let mut stack = [(0u32, 0u8); STACK4];
         let mut sp = 0usize;
@@ -600,7 +605,7 @@ impl Bvh4 {
             let n = &self.slots[node as usize];
             let w = &self.wide[node as usize];
             let (_, passes) = boxes8(w, &ov, &iv);
-            self.prefetch_children(bvh, node, &passes, rays & active);
+            self.prefetch_children::<false>(bvh, node, &passes, rays & active);
             let mut next = None;
             let mut valid = n.valid;
             while valid != 0 {
@@ -755,16 +760,23 @@ unsafe fn packet_lanes(
     [std::arch::x86_64::__m512d; 3],
     [std::arch::x86_64::__m512d; 3],
 ) {
-    use std::arch::x86_64::*;
     let inv: [[f64; 3]; PACKET] = std::array::from_fn(|k| d[k].map(|x| 1.0 / x));
-    let lanes = |f: &dyn Fn(usize) -> f64| -> __m512d {
-        let v: [f64; PACKET] = std::array::from_fn(f);
-        // SAFETY: eight f64, unaligned load.
-        unsafe { _mm512_loadu_pd(v.as_ptr()) }
-    };
-    let ov: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| o[k][a]));
-    let iv: [__m512d; 3] = std::array::from_fn(|a| lanes(&|k| inv[k][a]));
-    (inv, ov, iv)
+    (inv, by_axis(o), by_axis(&inv))
+}
+
+/// Eight 3-vectors by coordinate, one lane a vector.
+///
+/// # Safety
+/// The CPU must support AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn by_axis(v: &[[f64; 3]; PACKET]) -> [std::arch::x86_64::__m512d; 3] {
+    std::array::from_fn(|a| {
+        let lane: [f64; PACKET] = std::array::from_fn(|k| v[k][a]);
+        // SAFETY: eight f64, unaligned load; AVX-512F as the caller's.
+        unsafe { std::arch::x86_64::_mm512_loadu_pd(lane.as_ptr()) }
+    })
 }
 
 /// A node's four child boxes against eight segments (lane by lane: origin
