@@ -20,7 +20,7 @@ pub mod tonemap;
 use glow::HasContext;
 
 /// The GLSL version every shader is compiled with (GL 4.5 core: compute
-/// shaders, storage buffers, `texelFetch` on compressed textures).
+/// shaders, storage buffers).
 pub const GLSL_VERSION: &str = "#version 450 core";
 
 /// Errors of the GL renderer.

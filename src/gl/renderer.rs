@@ -45,7 +45,8 @@ pub struct GlOptions {
     /// when the renderer is made, and that count stays in use.
     pub samples: usize,
     /// Skip zero tile columns of `B0` in the gather (off only to measure
-    /// what it saves: the result is the same).
+    /// what it saves: the result is the same up to the order of the
+    /// gather's f32 sums, `src/gl/gather.rs`).
     pub skip_columns: bool,
     /// Skip the frame's passes when nothing changed.
     pub cache: bool,

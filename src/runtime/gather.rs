@@ -50,8 +50,11 @@
 
 use crate::bakefile::codec::decode::Codebook;
 use crate::bakefile::codec::{DenseFormat, Encoded};
+pub use bc6h::{unpack as unpack_bc6h_block, UNPACKED_BYTES as BC6H_UNPACKED_BYTES};
+pub use palette::bc4_levels;
 use palette::{bc1_keys, bc1_palette_bytes, bc4_palette, Bc1Table};
 use rayon::prelude::*;
+pub use sparse::rgb9e5_factors;
 use sparse::{fill_b0_columns, sparse_avx2_available, SparseRt};
 
 mod bc6h;
@@ -351,21 +354,7 @@ impl CompressedGather {
         let (mut bc4_7, mut bc4_5) = (Vec::new(), Vec::new());
         if e.format == DenseFormat::Bc4 {
             for c in 0..e.channels {
-                let value = |x: f32| {
-                    if x <= 0.0 {
-                        0.0
-                    } else {
-                        e.scale[c] * (e.log_range * (x - 1.0)).exp()
-                    }
-                };
-                let mut t7 = [0.0f32; 1786];
-                for (k, v) in t7.iter_mut().enumerate() {
-                    *v = value(k as f32 / (7.0 * 255.0));
-                }
-                let mut t5 = [0.0f32; 1276];
-                for (k, v) in t5.iter_mut().enumerate() {
-                    *v = value(k as f32 / (5.0 * 255.0));
-                }
+                let (t7, t5) = bc4_levels(e.scale[c], e.log_range);
                 bc4_7.push(t7);
                 bc4_5.push(t5);
             }

@@ -128,16 +128,19 @@
 //! # Decoding as the run time does
 //!
 //! The run time maps a BC1/BC4 texel `x ∈ [0, 1]` to `M_c · e^{L (x − 1)}`
-//! for `x > 0` and to 0 for `x = 0` (`texelFetch`, no filtering).
-//! [`decode`] and [`Encoded::gather`] decode BC1 with `bcdec_rs`, which
-//! rounds the interpolated colours to the nearest of 256 levels, and map
-//! the byte through a 256-entry table. Hardware that interpolates at higher
-//! precision differs from this by at most half a level (a factor
-//! `e^{L/510}`); Mesa llvmpipe truncates (TOOLCHAIN.md), up to one level
-//! low (`e^{L/255}`: 1.6 % at the room's automatic L ≈ 4, 10 % at L = 25),
-//! a bias the run-time tests must allow for. BC4, BC6H and the plain
-//! formats decode at float precision. Black texels (BC1 index 3 in 3-colour
-//! mode, BC4 index 6 in 6-level mode) are exactly 0 on every decoder.
+//! for `x > 0` and to 0 for `x = 0`. [`decode`] and [`Encoded::gather`]
+//! decode BC1 with `bcdec_rs`, which rounds the interpolated colours to the
+//! nearest of 256 levels, and map the byte through a 256-entry table; BC4,
+//! BC6H and the plain formats decode at float precision. Every run-time
+//! decoder — the CPU gather and the GL gather's shader — computes the same
+//! bytes and levels with the same integer arithmetic and tables, so all of
+//! them see the same f32 matrix. Texture units would not: they interpolate
+//! BC1's palette at their own precision (Mesa's llvmpipe truncates, up to
+//! one level low, a factor `e^{L/255}`: 1.6 % at the room's automatic
+//! L ≈ 4, 10 % at L = 25; NVIDIA's H200 decoded entries ~3 levels from
+//! `bcdec_rs`), which is why the GL gather does not use them. Black texels
+//! (BC1 index 3 in 3-colour mode, BC4 index 6 in 6-level mode) are exactly
+//! 0 on every decoder.
 //!
 //! # Bytes per entry
 //!

@@ -26,7 +26,7 @@
 /// `e1` as red, green, blue, then region 1's), 16 weights (`u8`, texel
 /// `t = 4 y + x`) and the region mask (`u16`, bit `t` set where texel `t`
 /// is in region 1; a one-region block's mask is 0), little endian.
-pub(super) const UNPACKED_BYTES: usize = 44;
+pub const UNPACKED_BYTES: usize = 44;
 
 /// Endpoint field of a mode's header: `w`, `x`, `y`, `z` of red, green and
 /// blue (`w`, `x`: region 0's endpoints; `y`, `z`: region 1's), and the
@@ -481,7 +481,7 @@ fn unquantize(v: u32, n: u32) -> u16 {
 
 /// Appends the unpacked form (module doc) of the unsigned BC6H block
 /// `packed` to `out`.
-pub(super) fn unpack(packed: &[u8; 16], out: &mut Vec<u8>) {
+pub fn unpack(packed: &[u8; 16], out: &mut Vec<u8>) {
     let block = u128::from_le_bytes(*packed);
     let short = bits(block, 0, 2);
     let code = if short < 2 { short } else { bits(block, 0, 5) };

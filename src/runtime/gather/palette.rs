@@ -85,3 +85,28 @@ pub(super) fn bc1_keys(word: u64) -> [u32; 4] {
     let kb = (mode << 10) | ((c0 & 31) << 5) | (c1 & 31);
     [kr, kg, kb, (word >> 32) as u32]
 }
+
+/// BC4's decoded values by the interpolation's numerator, for a channel of
+/// maximum `max` and log range `log_range`: `(t7, t5)` with `t7[k]` the
+/// value of `k / (7 · 255)` (8-level blocks) and `t5[k]` of `k / (5 · 255)`
+/// (6-level blocks), each `max · e^{L (x − 1)}` in f32 and 0 at `x = 0`
+/// (`bcdec_rs::bc4_float` then the codec's log scale). [`bc4_palette`]
+/// reads them; the GL gather uploads the same values.
+pub fn bc4_levels(max: f32, log_range: f32) -> ([f32; 1786], [f32; 1276]) {
+    let value = |x: f32| {
+        if x <= 0.0 {
+            0.0
+        } else {
+            max * (log_range * (x - 1.0)).exp()
+        }
+    };
+    let mut t7 = [0.0f32; 1786];
+    for (k, v) in t7.iter_mut().enumerate() {
+        *v = value(k as f32 / (7.0 * 255.0));
+    }
+    let mut t5 = [0.0f32; 1276];
+    for (k, v) in t5.iter_mut().enumerate() {
+        *v = value(k as f32 / (5.0 * 255.0));
+    }
+    (t7, t5)
+}

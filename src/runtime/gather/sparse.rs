@@ -39,17 +39,27 @@ pub(super) struct SparseRt {
     rgb9e5: bool,
 }
 
+/// RGB9E5 sparse values' factors: a word's channel `c` is its 9-bit
+/// mantissa times `factors[e][c] = 2^(e − 24) / scale_c` (e its 5-bit
+/// exponent; lane 3 is 0). Exact: powers of two times a mantissa below
+/// 2^9. The CPU gather and the GL gather (`glsl/gather.comp`) both use
+/// these f32 values.
+pub fn rgb9e5_factors(scale: [f32; 3]) -> [[f32; 4]; 32] {
+    let mut exp_factor = [[0.0f32; 4]; 32];
+    for (ex, f) in exp_factor.iter_mut().enumerate() {
+        for (fc, s) in f.iter_mut().zip(scale) {
+            *fc = (2f64.powi(ex as i32 - 24) / s as f64) as f32;
+        }
+    }
+    exp_factor
+}
+
 impl SparseRt {
     /// `e`'s sparse part laid out for tiles of `tile` (`tps` per side).
     pub(super) fn new(e: &Encoded, tile: usize, tps: usize) -> SparseRt {
         let sp = &e.sparse;
         let rgb9e5 = sp.precision == SparseValues::Rgb9e5 && !sp.is_empty();
-        let mut exp_factor = [[0.0f32; 4]; 32];
-        for (ex, f) in exp_factor.iter_mut().enumerate() {
-            for (fc, s) in f.iter_mut().zip(sp.scale) {
-                *fc = (2f64.powi(ex as i32 - 24) / s as f64) as f32;
-            }
-        }
+        let exp_factor = rgb9e5_factors(sp.scale);
         // The sparse part re-laid by tile (row of tiles, then tile column,
         // then group of 4 columns, then column and row), so that a skipped
         // tile or column group skips its entries' memory too (the tile
