@@ -591,11 +591,6 @@ pub fn run(
             )?;
         }
     }
-    writeln!(
-        out,
-        "{}",
-        gl_gather_row(&rt, refs, &all, &h_rt, options.repeat)
-    )?;
     out.push_str(&spot_row);
     writeln!(
         out,
@@ -633,7 +628,29 @@ roofs of the every-column gather: memory {:.1} % of the triad; {:.2e} lane FMAs/
             lane_fmas
         )?,
     }
-    gl_frame_table(&mut out, &rt, config, options, t_frame)?;
+    // The GPU half (src/bench/frame_gl.rs), after every CPU timing above,
+    // so that no GL thread runs beside them.
+    let gl_ctx = crate::gl::context::Headless::new();
+    let gl_gather = match &gl_ctx {
+        Ok(ctx) => {
+            let t = super::frame_gl::gather_table(
+                &mut out,
+                ctx,
+                &rt,
+                refs,
+                &all,
+                &lit,
+                &h_rt,
+                options.repeat,
+            )?;
+            super::frame_gl::frame_table(&mut out, ctx, &rt, config, options, t_frame)?;
+            t
+        }
+        Err(e) => {
+            writeln!(out, "\nGL gather and frame not run: {e}")?;
+            None
+        }
+    };
 
     if !options.classic {
         return Ok(out);
@@ -709,6 +726,20 @@ roofs of the every-column gather: memory {:.1} % of the triad; {:.2e} lane FMAs/
         t / t_lit
     )?;
     t_classic.push(t);
+    if let Ok(ctx) = &gl_ctx {
+        super::frame_gl::classic_rows(
+            &mut out,
+            ctx,
+            &f,
+            n,
+            &albedo,
+            &b0,
+            &exact,
+            k,
+            gl_gather,
+            options.repeat,
+        )?;
+    }
     // The same lights' gather with negligible columns culled at the
     // viewer's default, against the same classic times: its error is
     // measured against the same exact `T_∞ B0`, so the comparison stays
@@ -734,183 +765,6 @@ roofs of the every-column gather: memory {:.1} % of the triad; {:.2e} lane FMAs/
             .join(", ")
     )?;
     Ok(out)
-}
-
-/// The GL frame (`src/gl/renderer.rs`) on a headless context: the GPU time
-/// of each pass (timestamp queries) for a frame with nothing reused, with
-/// and without column skipping, the wall time of a whole frame and image
-/// (to `glFinish`), and an unchanged frame; or why it did not run. On
-/// Mesa's llvmpipe these are CPU figures too.
-fn gl_frame_table(
-    out: &mut String,
-    rt: &Runtime,
-    config: &SceneConfig,
-    options: &FrameBenchOptions,
-    cpu_frame: f64,
-) -> std::fmt::Result {
-    use crate::gl::renderer::{GlOptions, GlRenderer};
-    use glow::HasContext;
-    let ctx = match crate::gl::context::Headless::new() {
-        Ok(c) => c,
-        Err(e) => return writeln!(out, "\nGL frame not run: {e}"),
-    };
-    let gl = &ctx.gl;
-    let mut r = match GlRenderer::new(
-        gl,
-        rt,
-        GlOptions {
-            cache: false,
-            samples: rt.options.samples,
-            ..GlOptions::default()
-        },
-    ) {
-        Ok(r) => r,
-        Err(e) => return writeln!(out, "\nGL frame not run: {e}"),
-    };
-    let size = (options.width, options.height);
-    // A frame (its patch light on GL, or `H` from the CPU run time: the
-    // viewer's `--patch-light cpu`), the image drawn, to `glFinish`.
-    let frame_from = |r: &mut GlRenderer, cpu_h: bool| -> Result<(), crate::gl::GlError> {
-        if cpu_h {
-            r.frame_with_h(gl, &config.lights, &config.emission, rt.h())?;
-        } else {
-            r.frame(gl, &config.lights, &config.emission)?;
-        }
-        r.draw(
-            gl,
-            &config.camera,
-            crate::runtime::render::View::Final,
-            size,
-            &config.emission,
-        )?;
-        // SAFETY: waits for the GPU on the current context.
-        unsafe { gl.finish() };
-        Ok(())
-    };
-    let (res, t_frame) = best(options.repeat, || frame_from(&mut r, false));
-    if let Err(e) = res {
-        return writeln!(out, "\nGL frame failed: {e}");
-    }
-    let passes = r.pass_times(gl, true);
-    r.options.skip_columns = false;
-    let (_, t_all) = best(options.repeat, || frame_from(&mut r, false));
-    let passes_all = r.pass_times(gl, true);
-    r.options.skip_columns = true;
-    r.options.cache = true;
-    let _ = r.frame(gl, &config.lights, &config.emission);
-    let (_, t_unchanged) = best(options.repeat, || {
-        let _ = r.frame(gl, &config.lights, &config.emission);
-    });
-    // `H` from the CPU run time (its frame timed above), uploaded.
-    r.options.cache = false;
-    let (res, t_with_h) = best(options.repeat, || frame_from(&mut r, true));
-    if let Err(e) = res {
-        return writeln!(out, "\nGL frame with H from the CPU failed: {e}");
-    }
-    let passes_with_h = r.pass_times(gl, true);
-    let ms = |t: Option<f64>| t.map_or("—".to_string(), |v| format!("{v:.3} ms"));
-    writeln!(
-        out,
-        "\nGL frame on {} ({}), {} × {}, shadow maps {}², GPU times of the last of {} frames (timestamp queries)\n",
-        ctx.renderer(),
-        ctx.device,
-        options.width,
-        options.height,
-        r.options.shadow_resolution,
-        options.repeat
-    )?;
-    writeln!(
-        out,
-        "| pass | lit columns | every column | H from the CPU run time (`view --patch-light cpu`) |"
-    )?;
-    writeln!(out, "|---|---|---|---|")?;
-    for (k, name) in crate::gl::renderer::PASSES.iter().enumerate() {
-        // Direct light and the gather ran on the CPU: no GPU time.
-        let with_h = passes_with_h[k].map_or("not run".to_string(), |v| format!("{v:.3} ms"));
-        writeln!(
-            out,
-            "| {name} | {} | {} | {with_h} |",
-            ms(passes[k]),
-            ms(passes_all[k])
-        )?;
-    }
-    writeln!(
-        out,
-        "| whole frame and image, wall clock to glFinish | {:.3} ms | {:.3} ms | {:.3} ms + the CPU frame {:.3} ms = {:.3} ms |",
-        1e3 * t_frame,
-        1e3 * t_all,
-        1e3 * t_with_h,
-        1e3 * cpu_frame,
-        1e3 * (t_with_h + cpu_frame)
-    )?;
-    writeln!(
-        out,
-        "| unchanged frame (nothing runs) | {:.4} ms | | |",
-        1e3 * t_unchanged
-    )?;
-    r.delete(gl);
-    Ok(())
-}
-
-/// The GL gather (`src/gl/gather.rs`) on a headless context, every column,
-/// as one table row: the round trip (upload `B0`, dispatch, read `H` back)
-/// and its largest relative difference from the CPU gather `h_cpu`; or why
-/// it did not run. On Mesa's llvmpipe this is a CPU figure too.
-fn gl_gather_row(
-    rt: &Runtime,
-    b0: [&[f32]; 3],
-    all: &ActiveColumns,
-    h_cpu: &[Vec<f32>; 3],
-    repeat: usize,
-) -> String {
-    let gl = match crate::gl::context::Headless::new() {
-        Ok(gl) => gl,
-        Err(e) => return format!("| GL gather | — | not run: {e} |"),
-    };
-    let g = match crate::gl::gather::GlGather::new(&gl.gl, &rt.baked.matrix) {
-        Ok(g) => g,
-        Err(e) => return format!("| GL gather | — | not run: {e} |"),
-    };
-    let mut last = None;
-    let (_, t) = best(repeat, || {
-        last = Some(g.gather(&gl.gl, b0, all));
-    });
-    let row = match last {
-        Some(Ok(h)) => {
-            // Relative to the CPU's value; where that is 0 and the GPU's
-            // is not, the whole value differs (100 %).
-            let worst = (0..3)
-                .flat_map(|c| h[c].iter().zip(&h_cpu[c]))
-                .map(|(&x, &y)| match (x == y, y == 0.0) {
-                    (true, _) => 0.0,
-                    (false, true) => 1.0,
-                    (false, false) => ((x - y) / y).abs() as f64,
-                })
-                .fold(0.0, f64::max);
-            // The GPU's BC1/BC4 decoders may round an interpolated palette
-            // byte differently from the CPU's (llvmpipe truncates it): one
-            // byte step of the log scale, tests/gl_gather.rs.
-            let m = &rt.baked.matrix;
-            let steps = match m.format {
-                crate::bakefile::codec::DenseFormat::Bc1 => 1.0,
-                crate::bakefile::codec::DenseFormat::Bc4 => 2.0,
-                _ => 0.0,
-            };
-            let step = (steps * m.log_range as f64 / 255.0).exp() - 1.0;
-            format!(
-                "| GL gather, every column, {} ({}) | {:.3} ms | round trip (B0 up, H back); largest relative difference from the CPU gather {:.2} % (bound: {:.2} %, {steps} byte step(s) of the log scale) |",
-                gl.renderer(),
-                gl.device,
-                1e3 * t,
-                100.0 * worst,
-                100.0 * (step + 1e-4)
-            )
-        }
-        Some(Err(e)) => format!("| GL gather | — | failed: {e} |"),
-        None => "| GL gather | — | not run |".to_string(),
-    };
-    g.delete(&gl.gl);
-    row
 }
 
 /// `b`'s relative RMS and L1 differences from `a` over every patch and

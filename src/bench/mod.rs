@@ -8,6 +8,7 @@ pub mod accuracy;
 pub mod compression;
 pub mod form_factor;
 pub mod frame;
+pub mod frame_gl;
 pub mod images;
 pub mod skips;
 pub mod stress;

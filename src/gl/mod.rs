@@ -5,7 +5,9 @@
 //! defines) are added in one place, [`compile_compute`]. So far: a headless
 //! context ([`context`]) and the compressed gather ([`gather`]).
 
+pub mod classic;
 pub mod context;
+pub mod copy;
 pub mod direct;
 pub mod gather;
 pub mod light;
@@ -232,4 +234,47 @@ pub(crate) fn check(gl: &glow::Context, what: &str) -> Result<(), GlError> {
     } else {
         Err(GlError::Call(format!("{what}: GL error 0x{code:x}")))
     }
+}
+
+/// The GPU time of `f`'s commands, the fastest of `repeat` runs (seconds):
+/// a timestamp query before and after each run, read when the GPU is done
+/// (blocking: for benchmarks, not frames; the renderer's own timers never
+/// wait). `glQueryCounter` timestamps are right on every driver tried,
+/// Mesa's llvmpipe included.
+pub fn gpu_seconds(gl: &glow::Context, repeat: usize, mut f: impl FnMut()) -> Result<f64, GlError> {
+    let mut best = f64::INFINITY;
+    // SAFETY: queries created, issued, read and deleted on the current
+    // context; the u64 results are written to locals (no query buffer is
+    // bound).
+    unsafe {
+        let q0 = gl.create_query().map_err(GlError::Call)?;
+        let q1 = match gl.create_query() {
+            Ok(q) => q,
+            Err(e) => {
+                gl.delete_query(q0);
+                return Err(GlError::Call(e));
+            }
+        };
+        for _ in 0..repeat.max(1) {
+            gl.query_counter(q0, glow::TIMESTAMP);
+            f();
+            gl.query_counter(q1, glow::TIMESTAMP);
+            let (mut t0, mut t1) = (0u64, 0u64);
+            gl.get_query_parameter_u64_with_offset(
+                q0,
+                glow::QUERY_RESULT,
+                &mut t0 as *mut u64 as usize,
+            );
+            gl.get_query_parameter_u64_with_offset(
+                q1,
+                glow::QUERY_RESULT,
+                &mut t1 as *mut u64 as usize,
+            );
+            best = best.min(t1.saturating_sub(t0) as f64 * 1e-9);
+        }
+        gl.delete_query(q0);
+        gl.delete_query(q1);
+        check(gl, "timing on the GPU")?;
+    }
+    Ok(best)
 }
