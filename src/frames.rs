@@ -277,6 +277,9 @@ pub(crate) fn draw_headless(
                     shadow_resolution,
                     samples: rt.options.samples,
                     shadow_budget,
+                    // Textures filtered as the CPU renderer filters them,
+                    // so that both back ends draw the same image.
+                    mipmaps: false,
                     ..Default::default()
                 },
             )

@@ -24,6 +24,8 @@ use crate::gl::gather::GlGather;
 use crate::gl::gpu_seconds;
 use crate::gl::renderer::{GlOptions, GlRenderer};
 use crate::runtime::gather::ActiveColumns;
+use crate::runtime::render::{render, View};
+use crate::runtime::texture::Albedo;
 use crate::runtime::Runtime;
 use glow::HasContext;
 use std::fmt::Write as _;
@@ -255,13 +257,7 @@ pub(crate) fn frame_table(
         } else {
             r.frame(gl, &config.lights, &config.emission)?;
         }
-        r.draw(
-            gl,
-            &config.camera,
-            crate::runtime::render::View::Final,
-            size,
-            &config.emission,
-        )?;
+        r.draw(gl, &config.camera, View::Final, size, &config.emission)?;
         // SAFETY: waits for the GPU on the current context.
         unsafe { gl.finish() };
         Ok(())
@@ -326,6 +322,35 @@ pub(crate) fn frame_table(
         out,
         "| unchanged frame (nothing runs) | {:.4} ms | | |",
         1e3 * t_unchanged
+    )?;
+    // The images against the CPU renderer's (the reference: one ray per
+    // pixel centre, its own H), textures filtered alike.
+    r.options.mipmaps = false;
+    let albedo = Albedo::new(&rt.scene);
+    let mut diffs = Vec::new();
+    for view in [View::Final, View::Indirect] {
+        let gpu = r
+            .frame(gl, &config.lights, &config.emission)
+            .and_then(|_| r.render(gl, &config.camera, view, size, &config.emission));
+        match gpu {
+            Ok(gpu) => {
+                let (cpu, _) = render(rt, config, view, size.0, size.1, &albedo);
+                let (e, coverage) = gpu.difference(&cpu);
+                diffs.push(format!(
+                    "{view:?} {:.2} % relative RMS (coverage differs on {:.2} % of pixels)",
+                    100.0 * e,
+                    100.0 * coverage
+                ));
+            }
+            Err(e) => diffs.push(format!("{view:?} failed: {e}")),
+        }
+    }
+    writeln!(
+        out,
+        "\nGL images against the CPU renderer's at {} × {} (textures bilinear on both, no mipmaps): {}",
+        size.0,
+        size.1,
+        diffs.join("; ")
     )?;
     r.delete(gl);
     Ok(())

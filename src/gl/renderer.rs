@@ -55,6 +55,10 @@ pub struct GlOptions {
     /// [`GlError::OverBudget`] before allocating, and the renderer goes on
     /// with other lights).
     pub shadow_budget: Option<u64>,
+    /// Sample albedo textures with mipmaps (the viewer), or bilinearly at
+    /// full resolution as the CPU renderer does (`render`, comparisons
+    /// with it): the two differ where a texture is minified.
+    pub mipmaps: bool,
 }
 
 impl Default for GlOptions {
@@ -65,6 +69,7 @@ impl Default for GlOptions {
             skip_columns: true,
             cache: true,
             shadow_budget: None,
+            mipmaps: true,
         }
     }
 }
@@ -488,6 +493,7 @@ impl GlRenderer {
             gl.bind_buffer_base(b, 7, Some(self.direct.albedo_buffer()));
         }
         let binding = self.light_binding();
+        self.shade.mipmaps = self.options.mipmaps;
         self.timers.begin(gl, Pass::Shade);
         let r = self.shade.draw(
             gl,

@@ -38,6 +38,16 @@ pub struct Shade {
     pub color: Option<glow::Texture>,
     depth: Option<glow::Renderbuffer>,
     size: (usize, usize),
+    /// A bilinear sampler without mipmaps (repeat wrapping): bound over
+    /// the textures' own mipmapped filtering when [`Shade::mipmaps`] is
+    /// off, so that a texel is filtered as the CPU renderer filters it
+    /// ([`crate::runtime::texture::Texture::sample`]).
+    bilinear: glow::Sampler,
+    /// Sample albedo textures with their mipmaps (trilinear: no shimmer
+    /// under minification, the viewer's choice), or bilinearly from the
+    /// full-resolution level as the CPU reference does (`render`,
+    /// comparisons).
+    pub mipmaps: bool,
 }
 
 /// Where the camera's projection puts the near and far planes for a scene
@@ -111,13 +121,23 @@ impl Shade {
             defines,
         )?;
         // SAFETY: object creation on the current context.
-        let framebuffer = unsafe { gl.create_framebuffer() }.map_err(GlError::Call)?;
+        let (framebuffer, bilinear) = unsafe {
+            let bilinear = gl.create_sampler().map_err(GlError::Call)?;
+            let p = |k: u32, v: u32| gl.sampler_parameter_i32(bilinear, k, v as i32);
+            p(glow::TEXTURE_MIN_FILTER, glow::LINEAR);
+            p(glow::TEXTURE_MAG_FILTER, glow::LINEAR);
+            p(glow::TEXTURE_WRAP_S, glow::REPEAT);
+            p(glow::TEXTURE_WRAP_T, glow::REPEAT);
+            (gl.create_framebuffer().map_err(GlError::Call)?, bilinear)
+        };
         Ok(Shade {
             program,
             framebuffer,
             color: None,
             depth: None,
             size: (0, 0),
+            bilinear,
+            mipmaps: true,
         })
     }
 
@@ -252,6 +272,7 @@ impl Shade {
                 },
             );
             gl.uniform_1_i32(loc("albedo_texture").as_ref(), 0);
+            gl.bind_sampler(0, (!self.mipmaps).then_some(self.bilinear));
             gl.bind_vertex_array(Some(scene.vao));
             for d in &scene.draws {
                 let m = &materials[d.material];
@@ -267,6 +288,7 @@ impl Shade {
                 gl.draw_arrays(glow::TRIANGLES, d.first_vertex as i32, d.vertices as i32);
             }
             gl.bind_vertex_array(None);
+            gl.bind_sampler(0, None);
             gl.bind_framebuffer(glow::FRAMEBUFFER, None);
         }
         super::check(gl, "shading")
@@ -321,6 +343,7 @@ impl Shade {
         unsafe {
             gl.delete_program(self.program);
             gl.delete_framebuffer(self.framebuffer);
+            gl.delete_sampler(self.bilinear);
             if let Some(t) = self.color {
                 gl.delete_texture(t);
             }

@@ -65,6 +65,42 @@ pub struct Image {
     pub covered: Vec<bool>,
 }
 
+impl Image {
+    /// The relative RMS difference of this image from `reference` over the
+    /// pixels both cover (`√(Σ (a − r)² / Σ r²)`, three channels pooled), and
+    /// the share of pixels whose coverage differs: how the GL renderer is
+    /// compared with this one (`bench frame`, tests/gl_render.rs).
+    pub fn difference(&self, reference: &Image) -> (f64, f64) {
+        assert_eq!(
+            (self.width, self.height),
+            (reference.width, reference.height),
+            "images of different sizes"
+        );
+        let (mut num, mut den, mut differ) = (0.0f64, 0.0f64, 0usize);
+        for i in 0..self.radiance.len() {
+            if self.covered[i] != reference.covered[i] {
+                differ += 1;
+                continue;
+            }
+            if !self.covered[i] {
+                continue;
+            }
+            for c in 0..3 {
+                let (a, r) = (
+                    f64::from(self.radiance[i][c]),
+                    f64::from(reference.radiance[i][c]),
+                );
+                num += (a - r).powi(2);
+                den += r.powi(2);
+            }
+        }
+        (
+            (num / den.max(1e-300)).sqrt(),
+            differ as f64 / self.radiance.len().max(1) as f64,
+        )
+    }
+}
+
 /// Counts and times of one image.
 #[derive(Clone, Debug, Default)]
 pub struct RenderStats {
