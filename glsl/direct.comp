@@ -1,12 +1,17 @@
 // Direct light on patches (host: src/gl/direct.rs; CPU reference:
 // src/runtime/direct.rs). light.glsl is prepended by the host.
 //
-// One invocation per patch j: D_j is the mean of the direct irradiance
+// One invocation per sample point: a work-group of 64 takes 64 / lanes
+// patches, `lanes` invocations each (the sample count rounded up to a power
+// of two; invocations past `samples` idle), so that a scene of a few
+// thousand patches still fills a GPU (one invocation per patch gave 60
+// work-groups at 3,806 patches). D_j is the mean of the direct irradiance
 // over the first `samples` of its SAMPLES_PER_PATCH sample points (on its
-// real triangle pieces, progressive order), then B0_j = rho_j D_j + E_j.
-// A tile column of B0 with any non-zero entry is flagged for the gather
-// (tile_active, cleared by the host each frame): the gather reads only
-// flagged columns.
+// real triangle pieces, progressive order), summed in sample order by the
+// patch's first invocation, as the CPU sums them; then B0_j = rho_j D_j +
+// E_j. A tile column of B0 with any non-zero entry is flagged for the
+// gather (tile_active, cleared by the host each frame): the gather reads
+// only flagged columns.
 
 layout(local_size_x = 64) in;
 
@@ -23,19 +28,27 @@ layout(std430, binding = 7) writeonly buffer DPoints { float d_points[]; };
 
 uniform uint n;
 uniform uint samples;
+uniform uint lanes; // invocations a patch: samples rounded up to a power of two
+
+shared vec3 point_d[64];
 
 void main() {
-    uint j = gl_GlobalInvocationID.x;
-    if (j >= n) return;
-    vec3 d = vec3(0.0);
-    for (uint s = 0u; s < samples; s++) {
+    uint lid = gl_LocalInvocationID.x;
+    uint s = lid % lanes;
+    uint j = gl_WorkGroupID.x * (64u / lanes) + lid / lanes;
+    vec3 ds = vec3(0.0);
+    if (j < n && s < samples) {
         uint i = 3u * (j * uint(SAMPLES_PER_PATCH) + s);
         vec3 x = vec3(sample_position[i], sample_position[i + 1u], sample_position[i + 2u]);
         vec3 nn = vec3(sample_normal[i], sample_normal[i + 1u], sample_normal[i + 2u]);
-        vec3 ds = direct_irradiance(x, nn);
+        ds = direct_irradiance(x, nn);
         for (uint c = 0u; c < 3u; c++) d_points[(c * n + j) * samples + s] = ds[c];
-        d += ds;
     }
+    point_d[lid] = ds;
+    barrier();
+    if (j >= n || s != 0u) return;
+    vec3 d = vec3(0.0);
+    for (uint k = 0u; k < samples; k++) d += point_d[lid + k];
     d /= float(samples);
     bool any_light = false;
     for (uint c = 0u; c < 3u; c++) {

@@ -8,6 +8,11 @@ layout(location = 2) in uint triangle;
 
 uniform mat4 view_projection;
 
+// The same position as the other pass's vertex shader computes, bit for
+// bit: the shading pass's depth pre-pass (src/gl/shade.rs) draws with
+// shadow.vert, then shades with shade.vert at depth EQUAL.
+invariant gl_Position;
+
 out vec3 v_position;
 out vec2 v_texcoord;
 flat out uint v_triangle;

@@ -106,13 +106,15 @@ impl GlDirect {
                 gl.bind_buffer_base(glow::SHADER_STORAGE_BUFFER, k as u32, Some(*b));
             }
             let loc = |name: &str| gl.get_uniform_location(self.program, name);
+            let samples = samples.clamp(1, SAMPLES_PER_PATCH);
+            // One invocation per sample point, a power of two a patch
+            // (glsl/direct.comp): 64 / lanes patches a work-group.
+            let lanes = samples.next_power_of_two();
             gl.uniform_1_u32(loc("n").as_ref(), self.n as u32);
-            gl.uniform_1_u32(
-                loc("samples").as_ref(),
-                samples.clamp(1, SAMPLES_PER_PATCH) as u32,
-            );
+            gl.uniform_1_u32(loc("samples").as_ref(), samples as u32);
+            gl.uniform_1_u32(loc("lanes").as_ref(), lanes as u32);
             set_lights(self.program);
-            gl.dispatch_compute(self.n.div_ceil(64).max(1) as u32, 1, 1);
+            gl.dispatch_compute(self.n.div_ceil(64 / lanes).max(1) as u32, 1, 1);
         }
     }
 

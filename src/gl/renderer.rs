@@ -59,6 +59,9 @@ pub struct GlOptions {
     /// full resolution as the CPU renderer does (`render`, comparisons
     /// with it): the two differ where a texture is minified.
     pub mipmaps: bool,
+    /// Draw the camera's depth before shading (off only to measure what it
+    /// saves: the same image but where coplanar surfaces overlap exactly).
+    pub depth_prepass: bool,
 }
 
 impl Default for GlOptions {
@@ -70,6 +73,7 @@ impl Default for GlOptions {
             cache: true,
             shadow_budget: None,
             mipmaps: true,
+            depth_prepass: true,
         }
     }
 }
@@ -494,6 +498,7 @@ impl GlRenderer {
         }
         let binding = self.light_binding();
         self.shade.mipmaps = self.options.mipmaps;
+        self.shade.depth_prepass = self.options.depth_prepass;
         self.timers.begin(gl, Pass::Shade);
         let r = self.shade.draw(
             gl,

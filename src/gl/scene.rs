@@ -33,6 +33,13 @@ pub struct Draw {
 pub struct GlScene {
     pub vao: glow::VertexArray,
     vbo: glow::Buffer,
+    /// Positions only, indexed, for the depth-only passes (shadow maps,
+    /// the shading's depth pre-pass): each vertex once (12 bytes) instead
+    /// of three times per triangle with its texture coordinates (24), and
+    /// shared vertices transformed once by the post-transform cache.
+    depth_vao: glow::VertexArray,
+    depth_vbo: glow::Buffer,
+    depth_ebo: glow::Buffer,
     /// Three f32 per triangle (every triangle, twins included).
     pub normals: glow::Buffer,
     pub draws: Vec<Draw>,
@@ -102,6 +109,36 @@ impl GlScene {
             gl.enable_vertex_attrib_array(2);
             gl.vertex_attrib_pointer_i32(2, 1, glow::UNSIGNED_INT, stride, 20);
             gl.bind_vertex_array(None);
+            // The depth passes' geometry: the drawn triangles' indices
+            // into the scene's positions.
+            let depth_vao = gl.create_vertex_array().map_err(GlError::Call)?;
+            let depth_vbo = gl.create_buffer().map_err(GlError::Call)?;
+            let depth_ebo = gl.create_buffer().map_err(GlError::Call)?;
+            gl.bind_vertex_array(Some(depth_vao));
+            let positions: Vec<f32> = scene.positions.iter().flatten().copied().collect();
+            let indices: Vec<u32> = scene.triangles[..drawn].iter().flatten().copied().collect();
+            let nonempty = |d: &[u8]| -> Vec<u8> {
+                if d.is_empty() {
+                    vec![0u8; 4]
+                } else {
+                    d.to_vec()
+                }
+            };
+            gl.bind_buffer(glow::ARRAY_BUFFER, Some(depth_vbo));
+            gl.buffer_data_u8_slice(
+                glow::ARRAY_BUFFER,
+                &nonempty(bytes_of(&positions)),
+                glow::STATIC_DRAW,
+            );
+            gl.enable_vertex_attrib_array(0);
+            gl.vertex_attrib_pointer_f32(0, 3, glow::FLOAT, false, 12, 0);
+            gl.bind_buffer(glow::ELEMENT_ARRAY_BUFFER, Some(depth_ebo));
+            gl.buffer_data_u8_slice(
+                glow::ELEMENT_ARRAY_BUFFER,
+                &nonempty(bytes_of(&indices)),
+                glow::STATIC_DRAW,
+            );
+            gl.bind_vertex_array(None);
             let normals = storage_buffer(gl, bytes_of(&normals), glow::STATIC_DRAW)?;
             let mut textures = Vec::with_capacity(scene.materials.len());
             for m in &scene.materials {
@@ -120,6 +157,9 @@ impl GlScene {
             Ok(GlScene {
                 vao,
                 vbo,
+                depth_vao,
+                depth_vbo,
+                depth_ebo,
                 normals,
                 draws,
                 textures,
@@ -132,12 +172,19 @@ impl GlScene {
         }
     }
 
-    /// Draws every front triangle (for the shadow maps: no textures).
-    pub fn draw_all(&self, gl: &glow::Context) {
-        // SAFETY: a draw of the uploaded vertices on the current context.
+    /// Draws every drawn (front) triangle's positions only (indexed: the
+    /// depth passes' geometry, no textures), with the bound program.
+    pub fn draw_depth(&self, gl: &glow::Context) {
+        // SAFETY: a draw of this scene's index buffer on the current
+        // context.
         unsafe {
-            gl.bind_vertex_array(Some(self.vao));
-            gl.draw_arrays(glow::TRIANGLES, 0, (3 * self.drawn) as i32);
+            gl.bind_vertex_array(Some(self.depth_vao));
+            gl.draw_elements(
+                glow::TRIANGLES,
+                (3 * self.drawn) as i32,
+                glow::UNSIGNED_INT,
+                0,
+            );
             gl.bind_vertex_array(None);
         }
     }
@@ -148,6 +195,9 @@ impl GlScene {
         unsafe {
             gl.delete_vertex_array(self.vao);
             gl.delete_buffer(self.vbo);
+            gl.delete_vertex_array(self.depth_vao);
+            gl.delete_buffer(self.depth_vbo);
+            gl.delete_buffer(self.depth_ebo);
             gl.delete_buffer(self.normals);
             for t in self.textures.into_iter().flatten() {
                 gl.delete_texture(t);

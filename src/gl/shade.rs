@@ -48,6 +48,10 @@ pub struct Shade {
     /// full-resolution level as the CPU reference does (`render`,
     /// comparisons).
     pub mipmaps: bool,
+    /// The depth pre-pass's program (`shadow.vert`/`shadow.frag`: position
+    /// only, depth only), and whether it runs ([`Shade::draw`]).
+    depth_program: glow::Program,
+    pub depth_prepass: bool,
 }
 
 /// Where the camera's projection puts the near and far planes for a scene
@@ -120,6 +124,22 @@ impl Shade {
             ],
             defines,
         )?;
+        let depth_program = compile_program(
+            gl,
+            &[
+                Stage {
+                    kind: glow::VERTEX_SHADER,
+                    name: "shadow.vert",
+                    sources: &[super::shadow::VERTEX],
+                },
+                Stage {
+                    kind: glow::FRAGMENT_SHADER,
+                    name: "shadow.frag",
+                    sources: &[super::shadow::FRAGMENT],
+                },
+            ],
+            &[],
+        )?;
         // SAFETY: object creation on the current context.
         let (framebuffer, bilinear) = unsafe {
             let bilinear = gl.create_sampler().map_err(GlError::Call)?;
@@ -138,6 +158,8 @@ impl Shade {
             size: (0, 0),
             bilinear,
             mipmaps: true,
+            depth_program,
+            depth_prepass: true,
         })
     }
 
@@ -245,6 +267,22 @@ impl Shade {
             gl.clear_color(0.0, 0.0, 0.0, 0.0);
             gl.clear_depth_f32(1.0);
             gl.clear(glow::COLOR_BUFFER_BIT | glow::DEPTH_BUFFER_BIT);
+            if self.depth_prepass {
+                // Depth first, positions only: the shading pass below then
+                // runs its fragment shader (surface map, every light's
+                // filtered shadow maps, the albedo texture) once per pixel,
+                // for the nearest surface, instead of once per fragment
+                // drawn. The two vertex shaders compute gl_Position alike
+                // (`invariant`), so the nearest fragment passes EQUAL.
+                gl.use_program(Some(self.depth_program));
+                gl.color_mask(false, false, false, false);
+                let loc = gl.get_uniform_location(self.depth_program, "view_projection");
+                gl.uniform_matrix_4_f32_slice(loc.as_ref(), false, &vp.to_cols_array());
+                scene.draw_depth(gl);
+                gl.color_mask(true, true, true, true);
+                gl.depth_func(glow::EQUAL);
+                gl.depth_mask(false);
+            }
             gl.use_program(Some(self.program));
             gl.bind_buffer_base(glow::SHADER_STORAGE_BUFFER, 0, Some(scene.normals));
             map.bind(gl, self.program);
@@ -289,6 +327,8 @@ impl Shade {
             }
             gl.bind_vertex_array(None);
             gl.bind_sampler(0, None);
+            gl.depth_func(glow::LESS);
+            gl.depth_mask(true);
             gl.bind_framebuffer(glow::FRAMEBUFFER, None);
         }
         super::check(gl, "shading")
@@ -342,6 +382,7 @@ impl Shade {
         // SAFETY: objects of this context, not used after.
         unsafe {
             gl.delete_program(self.program);
+            gl.delete_program(self.depth_program);
             gl.delete_framebuffer(self.framebuffer);
             gl.delete_sampler(self.bilinear);
             if let Some(t) = self.color {

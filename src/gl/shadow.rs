@@ -203,7 +203,7 @@ impl ShadowMaps {
                     false,
                     &v.view_projection.to_cols_array(),
                 );
-                scene.draw_all(gl);
+                scene.draw_depth(gl);
             }
             gl.disable(glow::POLYGON_OFFSET_FILL);
             gl.bind_framebuffer(glow::FRAMEBUFFER, None);
