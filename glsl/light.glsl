@@ -30,6 +30,28 @@ uniform float normal_offset; // texels (src/gl/light.rs NORMAL_OFFSET)
 uniform sampler2DArrayShadow shadow_maps;   // linear: 2 x 2 bilinear comparison
 uniform sampler2DArrayShadow shadow_nearest; // the same maps, nearest texel
 
+// acos to about 1 ulp of f32 on every driver: GLSL sets no precision for
+// its own `acos`, and Mesa llvmpipe's was off by up to ~6e-5 rad, moving
+// a spot's penumbra by 1e-4 of its irradiance against the CPU's f64. The
+// arcsine polynomial of Cephes' asinf (S. L. Moshier, Cephes Math
+// Library, asinf.c) on |x| <= 1/2, with acos x = pi/2 - asin x there and
+// acos x = 2 asin sqrt((1 - x)/2) beyond (negated about pi for x < -1/2).
+float asin_poly(float z, float x) {
+    // asin x for |x| <= 1/2, z = x^2.
+    return ((((4.2163199048e-2 * z + 2.4181311049e-2) * z + 4.5470025998e-2) * z
+             + 7.4953002686e-2) * z + 1.6666752422e-1) * z * x + x;
+}
+float acos_accurate(float x) {
+    x = clamp(x, -1.0, 1.0);
+    float a = abs(x);
+    if (a <= 0.5) {
+        return 1.5707963267948966 - asin_poly(x * x, x);
+    }
+    float z = 0.5 * (1.0 - a);
+    float s = 2.0 * asin_poly(z, sqrt(z));
+    return x > 0.0 ? s : 3.141592653589793 - s;
+}
+
 // core/light.rs spot_profile.
 float spot_profile(float angle_deg, float cone_deg, float beam_deg) {
     if (angle_deg <= beam_deg) return 1.0;
@@ -52,7 +74,7 @@ vec3 incident(Light L, vec3 x, vec3 n) {
     if (kind == 2) {
         vec3 axis = normalize(L.direction.xyz);
         vec3 from_light = normalize(x - pos);
-        float angle = degrees(acos(clamp(dot(axis, from_light), -1.0, 1.0)));
+        float angle = acos_accurate(dot(axis, from_light)) * 57.29577951308232;
         profile = spot_profile(angle, L.direction.w, L.power.w);
         if (!(profile > 0.0)) return vec3(0.0);
     }
@@ -108,16 +130,23 @@ float visibility(Light L, vec3 x, vec3 n) {
     return s / 9.0;
 }
 
-// Direct irradiance at x (unit normal n) from every light, with shadows.
-// The irradiance is evaluated at x lifted by `lift` along n, as the CPU's
-// shadow rays start (core/direct.rs DirectLight::at_points).
+// Direct irradiance at x (unit normal n) from every light, with shadows:
+// the CPU's own shadow rays where RAY_SHADOWS is defined (shadow_ray.glsl,
+// prepended by the host: the direct pass on patches), else the shadow
+// maps (the shading pass, per pixel). The irradiance is evaluated at x
+// lifted by `lift` along n, as the CPU's shadow rays start (core/direct.rs
+// DirectLight::at_points).
 uniform float lift;
 vec3 direct_irradiance(vec3 x, vec3 n) {
     vec3 xl = x + n * lift;
     vec3 d = vec3(0.0);
     for (int i = 0; i < light_count; i++) {
         vec3 e = incident(lights[i], xl, n);
+#ifdef RAY_SHADOWS
+        if (e != vec3(0.0) && ray_visible(i, x, n)) d += e;
+#else
         if (e != vec3(0.0)) d += e * visibility(lights[i], x, n);
+#endif
     }
     return d;
 }

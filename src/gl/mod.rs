@@ -177,7 +177,7 @@ pub fn compile_program(
 
 /// `v` as bytes (plain 4-byte values: no padding).
 pub(crate) fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
-    // SAFETY: the callers pass u32, i32 and f32 values (and arrays of
+    // SAFETY: the callers pass u32, i32, f32 and f64 values (and arrays of
     // them), which have no padding or invalid bit patterns as bytes.
     unsafe { std::slice::from_raw_parts(v.as_ptr().cast(), std::mem::size_of_val(v)) }
 }

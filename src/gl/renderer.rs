@@ -259,7 +259,13 @@ impl GlRenderer {
         let scene = GlScene::new(gl, &rt.scene, baked.options.two_sided)?;
         let map = GlSurfaceMap::new(gl, &baked.surface_map)?;
         let shadows = ShadowMaps::new(gl, options.shadow_resolution, options.shadow_budget)?;
-        let direct = GlDirect::new(gl, baked)?;
+        let direct = GlDirect::new(
+            gl,
+            baked,
+            rt.direct.bvh(),
+            rt.direct.offset(),
+            rt.direct.far(),
+        )?;
         let gather = GlGather::new(gl, &baked.matrix)?;
         let near = GlNearField::new(gl, &rt.near_field_weights(options.samples))?;
         let shade = Shade::new(
@@ -403,6 +409,7 @@ impl GlRenderer {
         self.last = None;
         let res = self.shadows.resolution;
         self.packed = Packed::new(lights, self.scene.lo, self.scene.hi, res);
+        self.direct.set_lights(gl, lights);
         fill_buffer(
             gl,
             self.lights_buffer,
