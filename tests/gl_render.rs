@@ -35,7 +35,7 @@ use radiosity::gl::context::Headless;
 use radiosity::gl::renderer::{GlOptions, GlRenderer};
 use radiosity::gl::{compile_program, GlError, Stage};
 use radiosity::runtime::gather::ActiveColumns;
-use radiosity::runtime::render::{render, Image, View};
+use radiosity::runtime::render::{render, View};
 use radiosity::runtime::texture::Albedo;
 use radiosity::runtime::{Runtime, RuntimeOptions};
 use std::collections::BTreeMap;

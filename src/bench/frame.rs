@@ -20,7 +20,8 @@
 //! - **Errors** are against the exact `H = T_∞ B0` of the same `F`, itself
 //!   Jacobi-iterated in f64 until the update is below 1e-10 of `H`.
 
-use super::{fma_peak, memory_bandwidth_triad};
+pub use super::{best, rel_rms};
+use super::{fma_peak, keep_fastest, memory_bandwidth_triad};
 use crate::bake::form_factor::{of_voxelization, FormFactorOptions};
 use crate::bake::voxelize::voxelize_at;
 use crate::core::compute::{Backend, DeviceSelection, Gpu};
@@ -43,25 +44,6 @@ pub struct FrameBenchOptions {
     pub selection: DeviceSelection,
     /// Skip the classic baseline (it recomputes `F`).
     pub classic: bool,
-}
-
-/// The fastest of `repeat` runs: its value and its time.
-pub(crate) fn best<T>(repeat: usize, mut f: impl FnMut() -> T) -> (T, f64) {
-    let mut best: Option<(T, f64)> = None;
-    for _ in 0..repeat.max(1) {
-        keep_fastest(&mut best, &mut f);
-    }
-    best.expect("at least one run")
-}
-
-/// Runs `f` once; keeps its value and time in `best` when it is faster.
-fn keep_fastest<T>(best: &mut Option<(T, f64)>, f: impl FnOnce() -> T) {
-    let t = Instant::now();
-    let v = f();
-    let s = t.elapsed().as_secs_f64();
-    if best.as_ref().is_none_or(|b| s < b.1) {
-        *best = Some((v, s));
-    }
 }
 
 /// [`best`] of two functions whose times are compared: runs alternate, so
@@ -95,22 +77,6 @@ const ALTERNATING_BUDGET_S: f64 = 0.5;
 
 /// Pairs [`best_alternating`] runs at most beyond `repeat`.
 const ALTERNATING_MAX: usize = 200;
-
-/// Relative RMS difference of `a` against `r`, three channels pooled.
-pub fn rel_rms(a: &[Vec<f32>; 3], r: &[Vec<f64>; 3]) -> f64 {
-    let (mut d, mut s) = (0.0, 0.0);
-    for c in 0..3 {
-        for (x, y) in a[c].iter().zip(&r[c]) {
-            d += (*x as f64 - y) * (*x as f64 - y);
-            s += y * y;
-        }
-    }
-    if s > 0.0 {
-        (d / s).sqrt()
-    } else {
-        0.0
-    }
-}
 
 /// One pass of classic radiosity: `y_c = F x_c` for the three channels,
 /// reading `F` once (module doc).
@@ -643,7 +609,15 @@ roofs of the every-column gather: memory {:.1} % of the triad; {:.2e} lane FMAs/
                 &h_rt,
                 options.repeat,
             )?;
-            super::frame_gl::frame_table(&mut out, ctx, &rt, config, options, t_frame)?;
+            super::frame_gl::frame_table(
+                &mut out,
+                ctx,
+                &rt,
+                config,
+                (options.width, options.height),
+                options.repeat,
+                t_frame,
+            )?;
             t
         }
         Err(e) => {

@@ -15,7 +15,7 @@
 //!   passes over the same `F` as the CPU's classic rows, and the Jacobi
 //!   passes that reach the gather's error, against the exact `T_∞ B0`.
 
-use super::frame::{best, rel_rms, FrameBenchOptions};
+use super::{best, rel_rms};
 use crate::core::scene_config::SceneConfig;
 use crate::gl::classic::GlClassic;
 use crate::gl::context::Headless;
@@ -232,7 +232,8 @@ pub(crate) fn frame_table(
     ctx: &Headless,
     rt: &Runtime,
     config: &SceneConfig,
-    options: &FrameBenchOptions,
+    (width, height): (usize, usize),
+    repeat: usize,
     cpu_frame: f64,
 ) -> std::fmt::Result {
     let gl = &ctx.gl;
@@ -248,7 +249,7 @@ pub(crate) fn frame_table(
         Ok(r) => r,
         Err(e) => return writeln!(out, "\nGL frame not run: {e}"),
     };
-    let size = (options.width, options.height);
+    let size = (width, height);
     // A frame (its patch light on GL, or `H` from the CPU run time: the
     // viewer's `--patch-light cpu`), the image drawn, to `glFinish`.
     let frame_from = |r: &mut GlRenderer, cpu_h: bool| -> Result<(), crate::gl::GlError> {
@@ -262,23 +263,23 @@ pub(crate) fn frame_table(
         unsafe { gl.finish() };
         Ok(())
     };
-    let (res, t_frame) = best(options.repeat, || frame_from(&mut r, false));
+    let (res, t_frame) = best(repeat, || frame_from(&mut r, false));
     if let Err(e) = res {
         return writeln!(out, "\nGL frame failed: {e}");
     }
     let passes = r.pass_times(gl, true);
     r.options.skip_columns = false;
-    let (_, t_all) = best(options.repeat, || frame_from(&mut r, false));
+    let (_, t_all) = best(repeat, || frame_from(&mut r, false));
     let passes_all = r.pass_times(gl, true);
     r.options.skip_columns = true;
     r.options.cache = true;
     let _ = r.frame(gl, &config.lights, &config.emission);
-    let (_, t_unchanged) = best(options.repeat, || {
+    let (_, t_unchanged) = best(repeat, || {
         let _ = r.frame(gl, &config.lights, &config.emission);
     });
     // `H` from the CPU run time (its frame timed above), uploaded.
     r.options.cache = false;
-    let (res, t_with_h) = best(options.repeat, || frame_from(&mut r, true));
+    let (res, t_with_h) = best(repeat, || frame_from(&mut r, true));
     if let Err(e) = res {
         return writeln!(out, "\nGL frame with H from the CPU failed: {e}");
     }
@@ -289,10 +290,10 @@ pub(crate) fn frame_table(
         "\nGL frame on {} ({}), {} × {}, shadow maps {}², GPU times of the last of {} frames (timestamp queries)\n",
         ctx.renderer(),
         ctx.device,
-        options.width,
-        options.height,
+        width,
+        height,
         r.options.shadow_resolution,
-        options.repeat
+        repeat
     )?;
     writeln!(
         out,

@@ -171,3 +171,38 @@ pub(crate) fn report_dirs(out: &std::path::Path, tag: &str) -> anyhow::Result<st
     std::fs::create_dir_all(&bakes).with_context(|| format!("creating {}", bakes.display()))?;
     Ok(bakes)
 }
+
+/// The fastest of `repeat` runs: its value and its time.
+pub fn best<T>(repeat: usize, mut f: impl FnMut() -> T) -> (T, f64) {
+    let mut best: Option<(T, f64)> = None;
+    for _ in 0..repeat.max(1) {
+        keep_fastest(&mut best, &mut f);
+    }
+    best.expect("at least one run")
+}
+
+/// Runs `f` once; keeps its value and time in `best` when it is faster.
+pub(crate) fn keep_fastest<T>(best: &mut Option<(T, f64)>, f: impl FnOnce() -> T) {
+    let t = Instant::now();
+    let v = f();
+    let s = t.elapsed().as_secs_f64();
+    if best.as_ref().is_none_or(|b| s < b.1) {
+        *best = Some((v, s));
+    }
+}
+
+/// Relative RMS difference of `a` against `r`, three channels pooled.
+pub fn rel_rms(a: &[Vec<f32>; 3], r: &[Vec<f64>; 3]) -> f64 {
+    let (mut d, mut s) = (0.0, 0.0);
+    for c in 0..3 {
+        for (x, y) in a[c].iter().zip(&r[c]) {
+            d += (*x as f64 - y) * (*x as f64 - y);
+            s += y * y;
+        }
+    }
+    if s > 0.0 {
+        (d / s).sqrt()
+    } else {
+        0.0
+    }
+}

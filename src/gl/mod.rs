@@ -2,8 +2,13 @@
 //! paired with its shader in `glsl/`, each tested against the CPU run time
 //! ([`crate::runtime`]) that defines what it computes. Shaders are real
 //! files embedded with `include_str!`; the `#version` line (and compile-time
-//! defines) are added in one place, [`compile_compute`]. So far: a headless
-//! context ([`context`]) and the compressed gather ([`gather`]).
+//! defines) are added in one place, [`compile_compute`]. The frame
+//! ([`renderer`]): shadow maps ([`shadow`]), direct light on patches through
+//! the CPU's shadow rays ([`direct`]), the near-field correction
+//! ([`near_field`]), the compressed gather decoded in the shader
+//! ([`gather`]), shading ([`shade`]) and tone mapping ([`tonemap`]); the
+//! benchmarks' GPU baselines ([`classic`], [`copy`]); a headless context
+//! ([`context`]).
 
 pub mod classic;
 pub mod context;

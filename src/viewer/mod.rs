@@ -461,7 +461,17 @@ impl App {
             let passes: Vec<String> = PASSES
                 .iter()
                 .zip(times)
-                .filter_map(|(n, t)| t.map(|ms| format!("{n} {ms:.1} ms")))
+                // A GPU's passes take tens of microseconds: three
+                // decimals below a millisecond.
+                .filter_map(|(n, t)| {
+                    t.map(|ms| {
+                        if ms < 1.0 {
+                            format!("{n} {ms:.3} ms")
+                        } else {
+                            format!("{n} {ms:.1} ms")
+                        }
+                    })
+                })
                 .collect();
             let cpu = if self.patch_light == PatchLight::Cpu {
                 format!(" | CPU: patch light {:.1} ms", self.cpu_ms)

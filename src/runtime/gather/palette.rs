@@ -90,8 +90,8 @@ pub(super) fn bc1_keys(word: u64) -> [u32; 4] {
 /// maximum `max` and log range `log_range`: `(t7, t5)` with `t7[k]` the
 /// value of `k / (7 · 255)` (8-level blocks) and `t5[k]` of `k / (5 · 255)`
 /// (6-level blocks), each `max · e^{L (x − 1)}` in f32 and 0 at `x = 0`
-/// (`bcdec_rs::bc4_float` then the codec's log scale). [`bc4_palette`]
-/// reads them; the GL gather uploads the same values.
+/// (`bcdec_rs::bc4_float` then the codec's log scale). The CPU gather's
+/// BC4 palettes read them; the GL gather uploads the same values.
 pub fn bc4_levels(max: f32, log_range: f32) -> ([f32; 1786], [f32; 1276]) {
     let value = |x: f32| {
         if x <= 0.0 {
