@@ -123,8 +123,9 @@ pub(crate) enum BenchCommand {
         patches: usize,
         #[arg(long, default_value_t = 3)]
         repeat: usize,
-        /// The report's directory.
-        #[arg(short, long, default_value = "docs/skips")]
+        /// The report's directory (the committed report is docs/skips:
+        /// name it to update it).
+        #[arg(short, long, default_value = "out/skips")]
         output: PathBuf,
         #[command(flatten)]
         device: DeviceArgs,
@@ -166,8 +167,9 @@ pub(crate) enum BenchCommand {
         /// variants).
         #[arg(long)]
         baseline_only: bool,
-        /// The report's directory.
-        #[arg(short, long, default_value = "docs/sweep")]
+        /// The report's directory (the committed reports are docs/sweep
+        /// and docs/sweep-mitsuba: name one to update it).
+        #[arg(short, long, default_value = "out/sweep")]
         output: PathBuf,
         /// The bound on a baseline point's relative RMS error of H.
         #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]

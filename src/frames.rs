@@ -4,6 +4,7 @@
 //! drawing headless, writing the PNG.
 
 use crate::cli::{with_flag, DeviceArgs, RenderArgs, ViewArgs};
+use crate::outputs::{self, ImageFormat, Inputs};
 use anyhow::{bail, Context as _};
 use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::{BakeConfig, ComputeChoice};
@@ -21,6 +22,39 @@ fn is_bake_input(input: &Path) -> bool {
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("rad"))
         || bakefile::is_bake_file(input)
+}
+
+/// The files `render` and `view` read before loading anything: the bake
+/// or the scene `input` (a scene's OBJ, MTL libraries and images), the
+/// scene given with `--scene`, and the camera-and-lights file given or
+/// beside the scene. (A bake's own scene is added once the bake names it.)
+fn inputs_of(input: &Path, scene: Option<&Path>, camera_lights: Option<&Path>) -> Inputs {
+    let mut inputs = scene_inputs_of(input, scene);
+    for s in [Some(input), scene].into_iter().flatten() {
+        if !is_bake_input(s) {
+            inputs.file(&s.with_extension("json"), "the camera and lights");
+        }
+    }
+    if let Some(c) = camera_lights {
+        inputs.file(c, "the camera and lights");
+    }
+    inputs
+}
+
+/// [`inputs_of`] without the camera-and-lights files: what the viewer's
+/// `--save-to` must not be (it may be the camera and lights, which its
+/// saves update).
+fn scene_inputs_of(input: &Path, scene: Option<&Path>) -> Inputs {
+    let mut inputs = Inputs::new();
+    if is_bake_input(input) {
+        inputs.file(input, "the bake");
+    } else {
+        inputs.scene(input);
+    }
+    if let Some(s) = scene {
+        inputs.scene(s);
+    }
+    inputs
 }
 
 /// The bake file for `input`: itself, or a bake of the scene (cached).
@@ -149,9 +183,22 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
     check_exposure(args.exposure)?;
     check_image_size(args.width, args.height)?;
     let budget = shadow_budget(args.shadow_budget)?;
-    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("creating the output directory {}", dir.display()))?;
+    // The outputs, before any work: their formats by their names, none of
+    // them an input, places that take them.
+    let format = ImageFormat::of(&args.output, "-o")?;
+    let mut inputs = inputs_of(
+        &args.input,
+        args.scene.as_deref(),
+        args.camera_lights.as_deref(),
+    );
+    let mut outs = vec![(args.output.as_path(), "-o")];
+    if let Some(hdr) = &args.hdr {
+        outputs::check_pfm(hdr, "--hdr")?;
+        outs.push((hdr.as_path(), "--hdr"));
+    }
+    for &(out, flag) in &outs {
+        inputs.check(out, flag)?;
+        outputs::writable(out, flag)?;
     }
     let (baked, scene, _, config) = load_bake(
         &args.input,
@@ -165,6 +212,11 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
         cull: args.cull,
         ..RuntimeOptions::default()
     };
+    // The scene the bake names, known now.
+    inputs.scene(&scene.source);
+    for &(out, flag) in &outs {
+        inputs.check(out, flag)?;
+    }
     let mut rt = Runtime::new(baked, scene, options);
     let (img, summary) = draw_headless(
         &mut rt,
@@ -175,8 +227,9 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
         args.shadow_resolution,
         budget,
     )?;
-    let exposure = write_png(&args.output, &img, args.exposure)?;
+    let exposure = write_image(&args.output, format, &img, args.exposure)?;
     if let Some(hdr) = &args.hdr {
+        outputs::make_parent(hdr)?;
         radiosity::runtime::tonemap::write_pfm(hdr, img.width, img.height, &img.radiance)
             .with_context(|| format!("writing {}", hdr.display()))?;
     }
@@ -346,25 +399,22 @@ pub(crate) fn draw_headless(
     Ok(out)
 }
 
-/// Writes `img` as an 8-bit sRGB PNG with `exposure` (automatic when
-/// `None`); returns the exposure used.
-pub(crate) fn write_png(
+/// Writes `img` as an 8-bit sRGB image in `format` (PNG or JPEG, chosen
+/// by the name: [`ImageFormat::of`]) with `exposure` (automatic when
+/// `None`), through a temporary file renamed into place; returns the
+/// exposure used.
+pub(crate) fn write_image(
     path: &Path,
+    format: ImageFormat,
     img: &radiosity::runtime::render::Image,
     exposure: Option<f32>,
 ) -> anyhow::Result<f32> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("creating the output directory {}", dir.display()))?;
-    }
+    outputs::make_parent(path)?;
     let (pixels, exposure) = img.to_srgb8(exposure);
-    let png = image::RgbImage::from_raw(img.width as u32, img.height as u32, pixels)
+    let rgb = image::RgbImage::from_raw(img.width as u32, img.height as u32, pixels)
         .context("image size")?;
     let mut bytes = Vec::new();
-    png.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )?;
+    rgb.write_to(&mut std::io::Cursor::new(&mut bytes), format.image_format())?;
     write_atomic(path, &bytes, None).with_context(|| format!("writing {}", path.display()))?;
     Ok(exposure)
 }
@@ -469,6 +519,36 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
     if args.screenshot.is_some() && args.frames.is_none() {
         bail!("--screenshot needs --frames N (P or F12 saves screenshots interactively)");
     }
+    // The outputs, before any work (as `render`'s).
+    let mut inputs = inputs_of(
+        &args.input,
+        args.scene.as_deref(),
+        args.camera_lights.as_deref(),
+    );
+    let mut outs: Vec<(&Path, &str)> = Vec::new();
+    let mut headless_format = None;
+    if let Some(p) = &args.screenshot {
+        ImageFormat::of(p, "--screenshot")?;
+        outs.push((p, "--screenshot"));
+    }
+    if let Some(p) = &args.headless_to {
+        headless_format = Some(ImageFormat::of(p, "--headless-to")?);
+        outs.push((p, "--headless-to"));
+    }
+    for &(out, flag) in &outs {
+        inputs.check(out, flag)?;
+        outputs::writable(out, flag)?;
+    }
+    // The window saves its screenshot where it is told: its folder now.
+    if let Some(p) = &args.screenshot {
+        outputs::make_parent(p)?;
+    }
+    // --save-to may be the camera-and-lights file (the viewer's saves
+    // update it), never the scene or the bake.
+    let mut scene_inputs = scene_inputs_of(&args.input, args.scene.as_deref());
+    if let Some(p) = &args.save_to {
+        scene_inputs.check(p, "--save-to")?;
+    }
     let (baked, scene, scene_path, config) = load_bake(
         &args.input,
         args.patches,
@@ -476,10 +556,17 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
         args.scene.clone(),
         args.camera_lights.clone(),
     )?;
+    // The scene the bake names, known now.
+    inputs.scene(&scene_path);
+    scene_inputs.scene(&scene_path);
+    for &(out, flag) in &outs {
+        inputs.check(out, flag)?;
+    }
     let config_path = args
         .camera_lights
         .clone()
         .unwrap_or_else(|| scene_path.with_extension("json"));
+    scene_inputs.check(args.save_to.as_ref().unwrap_or(&config_path), "--save-to")?;
     let title = format!(
         "radiosity: {}",
         scene_path
@@ -512,7 +599,8 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
                 args.shadow_resolution,
                 budget,
             )?;
-            let exposure = write_png(png, &img, args.exposure)?;
+            let format = headless_format.expect("checked with --headless-to");
+            let exposure = write_image(png, format, &img, args.exposure)?;
             eprintln!("{summary}; exposure {}", exact(exposure));
             println!("{}", png.display());
             return Ok(());

@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 mod frames;
+mod outputs;
 mod reports;
 
 mod cli;
@@ -69,6 +70,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 use radiosity::bakefile::baked::{resolve_scene_path, Baked};
                 if paths == 0 {
                     bail!("--paths must be at least 1");
+                }
+                if let Some(csv) = &per_patch {
+                    let mut inputs = outputs::Inputs::new();
+                    inputs.file(&bake, "the bake");
+                    if let Some(c) = &cl {
+                        inputs.file(c, "the camera and lights");
+                    }
+                    inputs.check(csv, "--per-patch")?;
+                    outputs::writable(csv, "--per-patch")?;
+                    outputs::make_parent(csv)?;
                 }
                 let info = Baked::load(&bake)?.info;
                 let config =
@@ -272,6 +283,28 @@ fn info(path: &Path, json: bool) -> anyhow::Result<()> {
 /// `radiosity bake`.
 fn bake(args: BakeArgs) -> anyhow::Result<()> {
     let (config, json) = args.into_config()?;
+    // Before any work: no output over the scene's files, and places that
+    // take the outputs.
+    let mut inputs = outputs::Inputs::new();
+    inputs.scene(&config.scene);
+    if let Some(out) = &config.output {
+        inputs.check(out, "-o")?;
+        outputs::writable(out, "-o")?;
+    }
+    if let Some(dir) = &config.export {
+        let files: Vec<PathBuf> = bake::export::FILES.iter().map(|f| dir.join(f)).collect();
+        inputs.check_all(&files, "--export")?;
+        if let Some(out) = &config.output {
+            if files.iter().any(|f| f == out) {
+                bail!(
+                    "-o {} is one of the files --export writes into {}",
+                    out.display(),
+                    dir.display()
+                );
+            }
+        }
+        outputs::writable_dir(dir, "--export")?;
+    }
     let out = bake::run(&config, &mut |line| eprintln!("[bake] {line}")).map_err(|e| {
         // The library names the remedy "two-sided"; here it is a flag.
         let facing = e
@@ -304,6 +337,14 @@ fn export_mitsuba(
 ) -> anyhow::Result<()> {
     let scene = radiosity::core::scene::load(scene_path)
         .with_context(|| format!("loading {}", scene_path.display()))?;
+    // Nothing the export writes may be one of the files it reads.
+    let mut inputs = outputs::Inputs::new();
+    inputs.scene(scene_path);
+    if let Some(c) = &camera_lights {
+        inputs.file(c, "the camera and lights");
+    }
+    inputs.check_all(&radiosity::mitsuba::export::files(&scene, output), "-o")?;
+    outputs::writable_dir(output, "-o")?;
     let config = frames::camera_lights(camera_lights, scene_path, Some(&scene))?;
     let options = radiosity::mitsuba::ExportOptions {
         width,
@@ -474,6 +515,14 @@ fn bench_compression(
         seed,
         selection: DeviceSelection::from_flag_or_env(device.device)?,
     };
+    if let Some(path) = &output {
+        let mut inputs = outputs::Inputs::new();
+        for s in &scenes {
+            inputs.scene(s);
+        }
+        inputs.check(path, "-o")?;
+        outputs::writable(path, "-o")?;
+    }
     let mut args: Vec<String> = std::env::args().collect();
     args[0] = "radiosity".into();
     let scenes: Vec<(PathBuf, usize)> = scenes.into_iter().zip(patches).collect();
@@ -486,6 +535,7 @@ fn bench_compression(
     .context("compression report")?;
     match output {
         Some(path) => {
+            outputs::make_parent(&path)?;
             write_atomic(&path, report.as_bytes(), None)
                 .with_context(|| format!("writing {}", path.display()))?;
             eprintln!("wrote {}", path.display());

@@ -194,7 +194,11 @@ fn bake_writes_a_file_that_info_describes() {
         blocker.join("x.rad").to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("output directory"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("cannot create the folder"),
+        "{}",
+        stderr(&o)
+    );
     assert!(
         !stderr(&o).contains("[bake] voxelizing"),
         "failed before the bake"

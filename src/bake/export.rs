@@ -12,6 +12,17 @@ use anyhow::Context as _;
 use std::io::Write;
 use std::path::Path;
 
+/// The files [`export`] writes into its folder (`T_decoded.npy` is written
+/// by the bake beside them).
+pub const FILES: [&str; 6] = [
+    "patches.csv",
+    "patches.png",
+    "F.npy",
+    "T.npy",
+    "T_decoded.npy",
+    "albedo.npy",
+];
+
 /// Writes the inspection files: `patches.csv` (the kept patches, in matrix
 /// order), `patches.png` (the pieces, each with the index in `patches` of its
 /// patch, drawn by [`preview::render_pieces`]), `F.npy` (n × n), `T.npy` (3 × n × n,

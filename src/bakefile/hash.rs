@@ -183,10 +183,7 @@ impl SceneHash {
 
 /// Adds the library named by `line` if it is an `mtllib` line.
 fn collect_mtllib(line: &[u8], out: &mut Vec<String>) {
-    let text = String::from_utf8_lossy(line);
-    let text = text.trim_end_matches('\r');
-    if text.split_whitespace().next() == Some("mtllib") {
-        let name = text.split_once(' ').unwrap_or_default().1.trim();
+    if let Some(name) = crate::core::scene::files::mtllib_name(&String::from_utf8_lossy(line)) {
         out.push(name.to_string());
     }
 }

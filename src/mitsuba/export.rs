@@ -80,6 +80,18 @@ pub struct ExportSummary {
     pub lights: usize,
 }
 
+/// Every file [`export`] of `scene` writes into `dir` (whatever the
+/// materials it meshes): the two scene files, a mesh and a texture per
+/// material.
+pub fn files(scene: &Scene, dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut out = vec![dir.join("scene.xml"), dir.join("lights_only.xml")];
+    for m in 0..scene.materials.len() {
+        out.push(dir.join(format!("meshes/m{m}.obj")));
+        out.push(dir.join(format!("textures/m{m}.pfm")));
+    }
+    out
+}
+
 /// Writes the Mitsuba scene of `scene` with the camera, lights and emission
 /// scales of `config` into `dir` (created if needed): `scene.xml`,
 /// `lights_only.xml`, `meshes/m<i>.obj`, `textures/m<i>.pfm`.

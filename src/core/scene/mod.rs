@@ -35,6 +35,7 @@ use crate::core::error::SceneError;
 use crate::core::math::{cross, norm, sub};
 
 mod build;
+pub mod files;
 mod material;
 mod tap;
 use build::build_scene;
