@@ -123,9 +123,19 @@ bool any_hit(dvec3 o, dvec3 d) {
 // f32 sample point) towards light i meets no triangle: from x lifted along
 // n to the light's ray end (core::direct::DirectLight::at_points).
 bool ray_visible(int i, vec3 x, vec3 n) {
-    precise dvec3 o = dvec3(x) + dvec3(n) * rays[0].x;
+    double offset = rays[0].x;
+    precise dvec3 o = dvec3(x) + dvec3(n) * offset;
     dvec4 e = rays[1 + i];
     precise dvec3 end = e.w == 0.0LF ? o + e.xyz : e.xyz;
     precise dvec3 d = end - o;
+    if (e.w != 0.0LF) {
+        // Towards a point or spot light the segment stops the offset short
+        // of the light (DirectLight::shadow_segment): a light in a
+        // surface's plane is not shadowed by it at the segment's end.
+        precise double len = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+        if (!(len > offset)) return true;
+        precise double s = 1.0LF - offset / len;
+        d = d * s;
+    }
     return !any_hit(o, d);
 }

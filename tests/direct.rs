@@ -296,3 +296,79 @@ fn packets_and_cached_blockers_change_no_bit_of_the_direct_light() {
         "some light is blocked somewhere: the cache is exercised"
     );
 }
+
+/// A point light exactly in a ceiling's plane (inside its outline) lights
+/// the floor below as the inverse-square law says: the shadow segment
+/// stops the rays' offset short of the light (`DirectLight::
+/// shadow_segment`), so the ceiling does not block it at the segment's very
+/// end. Before, rounding decided each ray there: the floor came out black,
+/// speckled and striped (the original Cornell data's spot at the light
+/// quad's height). Packets and the cached per-point path agree.
+#[test]
+fn a_light_in_a_surfaces_plane_is_not_shadowed_by_it() {
+    let floor = quad(
+        [0.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 0.0],
+        0.5,
+        0.5,
+        [0.5; 3],
+    );
+    // The ceiling at y = 0.5 over the whole floor, facing down.
+    let ceiling = quad(
+        [0.0, 0.5, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        0.5,
+        0.5,
+        [0.5; 3],
+    );
+    let s = scene::load(&write_quads("in-plane", &[floor, ceiling])).unwrap();
+    let v = voxelize_at(&s, 0.25, &Backend::Cpu).unwrap();
+    let patches: Vec<_> = v
+        .patches
+        .into_iter()
+        .filter(|p| p.normal[1] > 0.99)
+        .collect();
+    assert_eq!(patches.len(), 16);
+    let dl = DirectLight::new(&s);
+    let (lx, lz) = (0.1f64, -0.15f64);
+    for light in [
+        Light::Point {
+            position: [lx as f32, 0.5, lz as f32],
+            intensity: [1.0; 3],
+        },
+        Light::Spot {
+            position: [lx as f32, 0.5, lz as f32],
+            direction: [0.0, -1.0, 0.0],
+            intensity: [1.0; 3],
+            cone_angle_deg: 89.0,
+            beam_angle_deg: 88.0,
+        },
+    ] {
+        let d = dl.irradiance(&patches, std::slice::from_ref(&light));
+        let prepared = Prepared::all(std::slice::from_ref(&light));
+        let mut cache = ShadowCache::new(1);
+        for (p, d) in patches.iter().zip(&d) {
+            let h = 0.25 * p.area.sqrt();
+            let mut e = 0.0;
+            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
+                let (x, z) = (p.centre[0] + h * a - lx, p.centre[2] + h * b - lz);
+                let r2: f64 = x * x + z * z + 0.25;
+                e += 0.5 / r2.powf(1.5) / 4.0;
+                // The per-point path (the CPU renderer's) lights it too.
+                let x = [p.centre[0] + h * a, 0.0, p.centre[2] + h * b];
+                let one = dl.at_point_cached(x, [0.0, 1.0, 0.0], &prepared, &mut cache);
+                assert!(one[0] > 0.0, "{light:?}: the point {x:?} is shadowed");
+            }
+            // The rays' offset (1e-4 of the extent) and the beam's edge at
+            // 88° (beyond every sample point) are all that separate them.
+            assert!(
+                (d[0] - e).abs() <= 1e-3 * e,
+                "{light:?}: patch at {:?}: {} against {e}",
+                p.centre,
+                d[0]
+            );
+        }
+    }
+}

@@ -943,3 +943,52 @@ fn gl_textured_images_match_the_cpu_renderer_when_both_filter_bilinearly() {
         r.delete(gl);
     }
 }
+
+/// A point light exactly in a ceiling's plane: the GPU's shadow rays stop
+/// short of it as the CPU's do (glsl/shadow_ray.glsl), so the floor is lit
+/// and its D is the CPU's patch by patch.
+#[test]
+fn gl_a_light_in_a_surfaces_plane_lights_the_floor_as_the_cpus() {
+    let ctx = context();
+    let gl = &ctx.gl;
+    let floor = quad(
+        [0.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 0.0],
+        0.5,
+        0.5,
+        [0.5; 3],
+    );
+    let ceiling = quad(
+        [0.0, 0.5, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        0.5,
+        0.5,
+        [0.5; 3],
+    );
+    let obj = write_quads("gl-in-plane", &[floor, ceiling]);
+    let mut rt = bake(&obj, Resolution::VoxelSize(0.25));
+    let lights = vec![Light::Point {
+        position: [0.1, 0.5, -0.15],
+        intensity: [1.0; 3],
+    }];
+    let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).unwrap();
+    r.frame(gl, &lights, &BTreeMap::new()).unwrap();
+    rt.frame(&lights, &BTreeMap::new());
+    let d_gl = r.d(gl);
+    let mut floor_patches = 0;
+    for (j, p) in rt.baked.patches.iter().enumerate() {
+        let (a, b) = (d_gl[0][j], rt.d()[0][j]);
+        assert!(
+            (a - b).abs() <= 1e-5 * b.abs() + 1e-9,
+            "patch {j}: GL {a} against CPU {b}"
+        );
+        if p.normal[1] > 0.99 {
+            floor_patches += 1;
+            assert!(b > 0.0, "floor patch {j} is dark");
+        }
+    }
+    assert!(floor_patches > 0);
+    r.delete(gl);
+}

@@ -564,3 +564,27 @@ fn real_form_factors_cornell_box_and_closed_cube() {
         assert!(worst < tolerance, "ρ = {rho}: {worst:.3e}");
     }
 }
+
+/// `MAX_USEFUL_BOUNCES` is where the series' tail, at most `ρ_max^k / (1 −
+/// ρ_max)` of `T_∞`, falls below f32's unit roundoff; a bake asked for more
+/// is refused before any work, pointing to the infinite solve.
+#[test]
+fn more_bounces_than_change_an_f32_result_are_refused() {
+    use radiosity::bake::transfer::MAX_USEFUL_BOUNCES;
+    let rho = f64::from(radiosity::core::scene::ALBEDO_MAX);
+    let tail = |k: u32| rho.powi(k as i32) / (1.0 - rho);
+    let u = 2f64.powi(-24);
+    assert!(tail(MAX_USEFUL_BOUNCES) < u);
+    assert!(tail(MAX_USEFUL_BOUNCES - 1) >= u);
+    let mut c = radiosity::bake::BakeConfig::new(
+        "scene.obj".into(),
+        radiosity::bake::voxelize::Resolution::Patches(100),
+    );
+    c.transfer.bounces = Bounces::K(MAX_USEFUL_BOUNCES);
+    assert!(c.validate().is_ok());
+    for k in [MAX_USEFUL_BOUNCES + 1, 1_000_000_000] {
+        c.transfer.bounces = Bounces::K(k);
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains("bounces") && e.contains("infinite"), "{e}");
+    }
+}

@@ -138,6 +138,20 @@ impl BakeConfig {
             self.near_field_rays,
             self.near_field_min_form_factor,
         )?;
+        if let super::transfer::Bounces::K(k) = self.transfer.bounces {
+            let most = super::transfer::MAX_USEFUL_BOUNCES;
+            if k == 0 || k > most {
+                return Err(BakeError::InvalidOption {
+                    option: "bounces",
+                    value: k.to_string(),
+                    expected: format!(
+                        "1..={most}, or infinite (`inf`): beyond {most} bounces the result is the \
+                         infinite one's to f32 precision (every albedo is below 0.99), which the \
+                         infinite solve computes exactly and faster"
+                    ),
+                });
+            }
+        }
         match self.resolution {
             Resolution::VoxelSize(s) if !(s.is_finite() && s > 0.0) => {
                 return Err(BakeError::InvalidOption {

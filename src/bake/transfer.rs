@@ -89,6 +89,16 @@ pub const CONVERGED_RATIO: f64 = 1.0 / (1u64 << 24) as f64;
 /// error: 2^40 bounces, beyond the 2^28 that albedo 1 − 1e-7 needs.
 pub const MAX_DOUBLINGS: u32 = 40;
 
+/// The most bounces a finite `T_k` may fold in: beyond it the series'
+/// tail `Σ_{h>k} F (ρF)^{h−1}`, at most `ρ_max^k / (1 − ρ_max)` of `T_∞`
+/// with every albedo below [`crate::core::scene::ALBEDO_MAX`] (0.99) and
+/// row sums ≤ 1, is below f32's unit roundoff: `T_k` is `T_∞` to the last
+/// bit a bake stores, and the LU solve of `T_∞` is exact and faster than
+/// the k products (time grows linearly in k: a billion bounces never
+/// finished). `0.99^2114 / 0.01 < 2^−24 ≤ 0.99^2113 / 0.01`
+/// (tests/transfer.rs).
+pub const MAX_USEFUL_BOUNCES: u32 = 2114;
+
 /// How many bounces of light `T` holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub enum Bounces {
