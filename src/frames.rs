@@ -217,6 +217,7 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
     for &(out, flag) in &outs {
         inputs.check(out, flag)?;
     }
+    check_camera(&config, &scene)?;
     let mut rt = Runtime::new(baked, scene, options);
     let (img, summary) = draw_headless(
         &mut rt,
@@ -227,6 +228,7 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
         args.shadow_resolution,
         budget,
     )?;
+    finite_image(&img, &config)?;
     let exposure = write_image(&args.output, format, &img, args.exposure)?;
     if let Some(hdr) = &args.hdr {
         outputs::make_parent(hdr)?;
@@ -399,6 +401,65 @@ pub(crate) fn draw_headless(
     Ok(out)
 }
 
+/// The camera against the scene it looks at
+/// ([`SceneConfig::check_in_scene`]).
+fn check_camera(config: &SceneConfig, scene: &scene::Scene) -> anyhow::Result<()> {
+    let (lo, hi) = scene.bounds();
+    config
+        .check_in_scene(lo, hi)
+        .map_err(anyhow::Error::new)
+        .context("the camera and lights (give others with --camera-lights)")
+}
+
+/// An image with a pixel that is not finite is an error naming the cause,
+/// never a file: lights strong or close enough for their light on some
+/// surface to overflow f32 (light powers are capped where they are read,
+/// `MAX_LIGHT_POWER`, but a light a hair from a surface still overflows).
+fn finite_image(
+    img: &radiosity::runtime::render::Image,
+    config: &SceneConfig,
+) -> anyhow::Result<()> {
+    let bad = img
+        .radiance
+        .iter()
+        .filter(|p| p.iter().any(|v| !v.is_finite()))
+        .count();
+    if bad == 0 {
+        return Ok(());
+    }
+    let strongest = config
+        .lights
+        .iter()
+        .enumerate()
+        .map(|(k, l)| {
+            let p = match l {
+                radiosity::core::scene_config::Light::Directional { irradiance, .. } => irradiance,
+                radiosity::core::scene_config::Light::Point { intensity, .. }
+                | radiosity::core::scene_config::Light::Spot { intensity, .. } => intensity,
+            };
+            (k, p.iter().fold(0.0f32, |a, &b| a.max(b)))
+        })
+        .max_by(|a, b| a.1.total_cmp(&b.1));
+    let mut which = match strongest {
+        Some((k, p)) => format!("the strongest light is lights[{k}], {p:e}"),
+        None => "no light".to_string(),
+    };
+    if let Some((name, scale)) = config
+        .emission
+        .iter()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .filter(|(_, &s)| s > 1.0)
+    {
+        which += &format!("; the largest emission scale is {scale:e}, of material {name}");
+    }
+    bail!(
+        "{bad} of {} pixels are infinite or NaN: the light on some surface overflows f32 \
+         ({which}); scale the lights or the emission down (or move lights off the surfaces): \
+         an --exposure shows the same image. Nothing was written",
+        img.radiance.len()
+    )
+}
+
 /// Writes `img` as an 8-bit sRGB image in `format` (PNG or JPEG, chosen
 /// by the name: [`ImageFormat::of`]) with `exposure` (automatic when
 /// `None`), through a temporary file renamed into place; returns the
@@ -559,6 +620,7 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
     // The scene the bake names, known now.
     inputs.scene(&scene_path);
     scene_inputs.scene(&scene_path);
+    check_camera(&config, &scene)?;
     for &(out, flag) in &outs {
         inputs.check(out, flag)?;
     }
@@ -599,6 +661,7 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
                 args.shadow_resolution,
                 budget,
             )?;
+            finite_image(&img, &config)?;
             let format = headless_format.expect("checked with --headless-to");
             let exposure = write_image(png, format, &img, args.exposure)?;
             eprintln!("{summary}; exposure {}", exact(exposure));

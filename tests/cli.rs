@@ -738,3 +738,117 @@ fn bench_frame_prints_its_tables() {
         assert!(l1 <= bound + 1e-4 + 2e-3, "{line}");
     }
 }
+
+/// Values that gave garbage with exit 0 are refused with exit 1, naming
+/// the field or option, and write nothing: a light of 1e38 W/sr (a NaN
+/// image), a camera at x = 1e38 (a black one), an emission scale that
+/// overflows f32 (infinite pixels: the image check), a billion bounces
+/// (never finished).
+#[test]
+fn values_that_gave_garbage_are_refused() {
+    let obj = common::bundled_copy("cornell_box", "cli-garbage");
+    let dir = obj.parent().unwrap().to_path_buf();
+    let rad = dir.join("cb.rad");
+    let o = radiosity(&[
+        "bake",
+        obj.to_str().unwrap(),
+        "--patches",
+        "150",
+        "-o",
+        rad.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json = std::fs::read_to_string(obj.with_extension("json")).unwrap();
+    let mut config: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let cases: Vec<(&str, serde_json::Value, &str)> = vec![
+        (
+            "huge",
+            {
+                let mut c = config.clone();
+                c["lights"][0]["intensity"] = serde_json::json!([1e38, 1e38, 1e38]);
+                c
+            },
+            "lights[0].intensity",
+        ),
+        (
+            "far",
+            {
+                let mut c = config.clone();
+                c["camera"]["position"][0] = serde_json::json!(1e38);
+                c
+            },
+            "camera.position",
+        ),
+        (
+            "emission",
+            {
+                let mut c = config.clone();
+                c["emission"] = serde_json::json!({"light": 1e38});
+                c
+            },
+            "infinite or NaN",
+        ),
+    ];
+    for (name, c, says) in cases {
+        let path = dir.join(format!("{name}.json"));
+        std::fs::write(&path, serde_json::to_string(&c).unwrap()).unwrap();
+        let png = dir.join(format!("{name}.png"));
+        for backend in ["cpu", "gl"] {
+            let o = radiosity(&[
+                "render",
+                rad.to_str().unwrap(),
+                "--camera-lights",
+                path.to_str().unwrap(),
+                "-o",
+                png.to_str().unwrap(),
+                "--hdr",
+                png.with_extension("pfm").to_str().unwrap(),
+                "--width",
+                "48",
+                "--height",
+                "36",
+                "--backend",
+                backend,
+            ]);
+            assert_eq!(
+                o.status.code(),
+                Some(1),
+                "{name} on {backend}: {}",
+                stderr(&o)
+            );
+            assert!(stderr(&o).contains(says), "{name}: {}", stderr(&o));
+            assert!(
+                !png.exists() && !png.with_extension("pfm").exists(),
+                "{name}: written"
+            );
+        }
+    }
+    // The same file with sane values renders.
+    config["lights"][0]["intensity"] = serde_json::json!([7e4, 5e4, 2e4]);
+    let ok = dir.join("ok.json");
+    std::fs::write(&ok, serde_json::to_string(&config).unwrap()).unwrap();
+    let png = dir.join("ok.png");
+    let o = radiosity(&[
+        "render",
+        rad.to_str().unwrap(),
+        "--camera-lights",
+        ok.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--width",
+        "48",
+        "--height",
+        "36",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Bounces: refused at once, pointing to inf.
+    let t = std::time::Instant::now();
+    let o = radiosity(&["bake", obj.to_str().unwrap(), "--bounces", "1000000000"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--bounces") && stderr(&o).contains("inf"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(t.elapsed().as_secs_f64() < 10.0);
+}

@@ -40,6 +40,11 @@ pub struct SceneConfig {
     pub emission: BTreeMap<String, f32>,
 }
 
+/// The farthest a camera may be from the scene's centre, in scene
+/// extents ([`SceneConfig::check_in_scene`]): f32 keeps 24 bits, so at a
+/// million extents a ray's position is resolved to 6e-2 of the scene.
+pub const MAX_CAMERA_DISTANCE: f64 = 1e6;
+
 /// A pinhole camera.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -166,10 +171,26 @@ fn direction3(field: String, v: [f32; 3]) -> Result<(), InvalidField> {
     Ok(())
 }
 
+/// The largest light power component accepted (W/sr for point and spot
+/// lights, W/m² for the sun, in the scene's units): direct light, its sums
+/// over lights and the gathers are f32 (at most 3.4e38), so a power near
+/// that range overflows on any surface within a unit of the light (a light
+/// of 1e38 W/sr gave a NaN image and exit 0). Larger scenes' lights
+/// (the Cornell box's in millimetres, 7.4e4 W/sr) stay far below.
+pub const MAX_LIGHT_POWER: f32 = 1e36;
+
 fn power3(field: String, v: [f32; 3]) -> Result<(), InvalidField> {
     finite3(field.clone(), v)?;
     if v.iter().any(|&x| x < 0.0) {
         return Err(invalid(field, show3(v), "light power must be non-negative"));
+    }
+    if v.iter().any(|&x| x > MAX_LIGHT_POWER) {
+        return Err(invalid(
+            field,
+            show3(v),
+            "light power must be at most 1e36: beyond, the light on surfaces near it overflows \
+             f32 (an exposure can show any image of smaller lights)",
+        ));
     }
     Ok(())
 }
@@ -281,6 +302,32 @@ impl SceneConfig {
                     power3(f("intensity"), *intensity)?;
                 }
             }
+        }
+        Ok(())
+    }
+
+    /// Checks the camera against the scene it looks at (bounds `lo..hi`):
+    /// its position within [`MAX_CAMERA_DISTANCE`] extents of the scene's
+    /// centre. Farther, f32 rays from it cannot resolve the scene (a
+    /// camera at x = 1e38 drew a black image with exit 0).
+    pub fn check_in_scene(&self, lo: [f32; 3], hi: [f32; 3]) -> Result<(), InvalidField> {
+        let extent = (0..3)
+            .map(|a| f64::from(hi[a]) - f64::from(lo[a]))
+            .fold(0.0, f64::max)
+            .max(f64::MIN_POSITIVE);
+        let centre: [f64; 3] = std::array::from_fn(|a| 0.5 * (f64::from(lo[a]) + f64::from(hi[a])));
+        let p = self.camera.position.map(f64::from);
+        let d = sub(p, centre);
+        let distance = dot(d, d).sqrt() / extent;
+        if !(distance <= MAX_CAMERA_DISTANCE) {
+            return Err(invalid(
+                "camera.position".into(),
+                show3(self.camera.position),
+                &format!(
+                    "the camera is {distance:.3e} scene extents from the scene's centre; at most \
+                     {MAX_CAMERA_DISTANCE:e} (f32 rays cannot resolve the scene from farther)"
+                ),
+            ));
         }
         Ok(())
     }
