@@ -56,7 +56,9 @@ pub(crate) enum Command {
     Render(RenderArgs),
     /// Open a window on a bake (or a scene, baked first or taken from the
     /// bake cache): move the camera and the lights and watch indirect light
-    /// follow (keys: H). Needs a display; `render` draws the same headless.
+    /// follow (the keys below; H in the window shows them). Needs a
+    /// display; `render` (or --headless-to) draws the same view headless.
+    #[command(after_help = view_keys())]
     View(ViewArgs),
     /// Write a bundled scene (OBJ + MTL + camera/lights JSON) into a directory.
     Generate {
@@ -698,4 +700,10 @@ pub(crate) fn parse_bounces(s: &str) -> Result<Bounces, String> {
             )),
         },
     }
+}
+
+/// The viewer's keys, for `view --help` (the window prints them at start
+/// and with H).
+fn view_keys() -> String {
+    format!("Keys in the window:\n{}", radiosity::viewer::HELP)
 }

@@ -180,7 +180,9 @@ pub(super) fn build_with(name: &str, max_cell: f64) -> Result<GeneratedScene, us
             (Ke 17 12 4, 130 x 105 mm at y = 548.8, filling the ceiling hole, facing down). \
             The spot light 0.8 mm below the quad's centre, pointing down, is its dynamic \
             stand-in: intensity = Ke * 13650 mm^2 / pi, the on-axis intensity of the quad \
-            when Ke is read as its exitance."
+            when Ke is read as its exitance. Both are on: for the spot alone set \
+            \"emission\": {\"light\": 0} (or press M in the viewer); for the quad alone \
+            remove the spot."
             .into(),
     };
     assemble(
