@@ -97,46 +97,6 @@ impl GlDirect {
                 ("RAY_SHADOWS", 1),
             ],
         )?;
-        // core::bvh's Node (8 words) and Tri (12 words), as laid out for
-        // the form-factor kernel.
-        let nodes: Vec<u32> = bvh
-            .nodes
-            .iter()
-            .flat_map(|nd| {
-                let f = |v: f32| v.to_bits();
-                [
-                    f(nd.min[0]),
-                    f(nd.min[1]),
-                    f(nd.min[2]),
-                    nd.left,
-                    f(nd.max[0]),
-                    f(nd.max[1]),
-                    f(nd.max[2]),
-                    nd.count,
-                ]
-            })
-            .collect();
-        let tris: Vec<u32> = bvh
-            .tris
-            .iter()
-            .flat_map(|t| {
-                let f = |v: f32| v.to_bits();
-                [
-                    f(t.v0[0]),
-                    f(t.v0[1]),
-                    f(t.v0[2]),
-                    t.dir,
-                    f(t.v1[0]),
-                    f(t.v1[1]),
-                    f(t.v1[2]),
-                    t.patch,
-                    f(t.v2[0]),
-                    f(t.v2[1]),
-                    f(t.v2[2]),
-                    t.pad2,
-                ]
-            })
-            .collect();
         let flat = |v: &[[f32; 3]]| v.iter().flatten().copied().collect::<Vec<f32>>();
         let albedo: Vec<f32> = (0..3)
             .flat_map(|c| baked.patches.iter().map(move |p| p.albedo[c]))
@@ -164,8 +124,10 @@ impl GlDirect {
                 &vec![0u8; 12 * n * SAMPLES_PER_PATCH],
                 glow::DYNAMIC_COPY,
             )?,
-            storage_buffer(gl, bytes_of(&nodes), glow::STATIC_DRAW)?,
-            storage_buffer(gl, bytes_of(&tris), glow::STATIC_DRAW)?,
+            // core::bvh's Node (8 words) and Tri (12 words), `repr(C)` as
+            // the form-factor kernel reads them too.
+            storage_buffer(gl, bytes_of(&bvh.nodes), glow::STATIC_DRAW)?,
+            storage_buffer(gl, bytes_of(&bvh.tris), glow::STATIC_DRAW)?,
             storage_buffer(
                 gl,
                 bytes_of(&ray_records(&[], offset, far)),

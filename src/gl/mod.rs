@@ -182,8 +182,9 @@ pub fn compile_program(
 
 /// `v` as bytes (plain 4-byte values: no padding).
 pub(crate) fn bytes_of<T: Copy>(v: &[T]) -> &[u8] {
-    // SAFETY: the callers pass u32, i32, f32 and f64 values (and arrays of
-    // them), which have no padding or invalid bit patterns as bytes.
+    // SAFETY: the callers pass u32, i32, f32 and f64 values, arrays of
+    // them, and `repr(C)` structs of 4-byte fields (core::bvh's Node and
+    // Tri), which have no padding or invalid bit patterns as bytes.
     unsafe { std::slice::from_raw_parts(v.as_ptr().cast(), std::mem::size_of_val(v)) }
 }
 
@@ -264,22 +265,33 @@ pub fn gpu_seconds(gl: &glow::Context, repeat: usize, mut f: impl FnMut()) -> Re
             gl.query_counter(q0, glow::TIMESTAMP);
             f();
             gl.query_counter(q1, glow::TIMESTAMP);
-            let (mut t0, mut t1) = (0u64, 0u64);
-            gl.get_query_parameter_u64_with_offset(
-                q0,
-                glow::QUERY_RESULT,
-                &mut t0 as *mut u64 as usize,
-            );
-            gl.get_query_parameter_u64_with_offset(
-                q1,
-                glow::QUERY_RESULT,
-                &mut t1 as *mut u64 as usize,
-            );
-            best = best.min(t1.saturating_sub(t0) as f64 * 1e-9);
+            best = best.min(elapsed_ns(gl, q0, q1) as f64 * 1e-9);
         }
         gl.delete_query(q0);
         gl.delete_query(q1);
         check(gl, "timing on the GPU")?;
     }
     Ok(best)
+}
+
+/// Nanoseconds between two issued timestamp queries (blocking until both
+/// results are there; the u64 results are written to locals, no query
+/// buffer being bound).
+pub(crate) fn elapsed_ns(gl: &glow::Context, q0: glow::Query, q1: glow::Query) -> u64 {
+    let (mut t0, mut t1) = (0u64, 0u64);
+    // SAFETY: result queries of timestamps issued on the current context,
+    // written to the two locals.
+    unsafe {
+        gl.get_query_parameter_u64_with_offset(
+            q0,
+            glow::QUERY_RESULT,
+            &mut t0 as *mut u64 as usize,
+        );
+        gl.get_query_parameter_u64_with_offset(
+            q1,
+            glow::QUERY_RESULT,
+            &mut t1 as *mut u64 as usize,
+        );
+    }
+    t1.saturating_sub(t0)
 }

@@ -165,18 +165,7 @@ impl Timers {
                 let ready =
                     wait || gl.get_query_parameter_u32(q1, glow::QUERY_RESULT_AVAILABLE) != 0;
                 if ready {
-                    let (mut t0, mut t1) = (0u64, 0u64);
-                    gl.get_query_parameter_u64_with_offset(
-                        q0,
-                        glow::QUERY_RESULT,
-                        &mut t0 as *mut u64 as usize,
-                    );
-                    gl.get_query_parameter_u64_with_offset(
-                        q1,
-                        glow::QUERY_RESULT,
-                        &mut t1 as *mut u64 as usize,
-                    );
-                    self.last[pass as usize] = Some(t1.saturating_sub(t0) as f64 * 1e-6);
+                    self.last[pass as usize] = Some(super::elapsed_ns(gl, q0, q1) as f64 * 1e-6);
                     self.free.extend([q0, q1]);
                 } else {
                     keep.push((pass, q0, q1));
