@@ -124,22 +124,7 @@ impl Shade {
             ],
             defines,
         )?;
-        let depth_program = compile_program(
-            gl,
-            &[
-                Stage {
-                    kind: glow::VERTEX_SHADER,
-                    name: "shadow.vert",
-                    sources: &[super::shadow::VERTEX],
-                },
-                Stage {
-                    kind: glow::FRAGMENT_SHADER,
-                    name: "shadow.frag",
-                    sources: &[super::shadow::FRAGMENT],
-                },
-            ],
-            &[],
-        )?;
+        let depth_program = super::shadow::depth_program(gl)?;
         // SAFETY: object creation on the current context.
         let (framebuffer, bilinear) = unsafe {
             let bilinear = gl.create_sampler().map_err(GlError::Call)?;

@@ -17,6 +17,28 @@ use glow::HasContext;
 pub const VERTEX: &str = include_str!("../../glsl/shadow.vert");
 pub const FRAGMENT: &str = include_str!("../../glsl/shadow.frag");
 
+/// The depth-only program (`shadow.vert`, `shadow.frag`: positions
+/// through `view_projection`, no colour): the shadow maps' and the
+/// shading pass's depth pre-pass.
+pub fn depth_program(gl: &glow::Context) -> Result<glow::Program, GlError> {
+    compile_program(
+        gl,
+        &[
+            Stage {
+                kind: glow::VERTEX_SHADER,
+                name: "shadow.vert",
+                sources: &[VERTEX],
+            },
+            Stage {
+                kind: glow::FRAGMENT_SHADER,
+                name: "shadow.frag",
+                sources: &[FRAGMENT],
+            },
+        ],
+        &[],
+    )
+}
+
 /// Largest shadow map side accepted.
 pub const MAX_RESOLUTION: usize = 8192;
 
@@ -52,22 +74,7 @@ impl ShadowMaps {
                 MAX_RESOLUTION.min(max)
             )));
         }
-        let program = compile_program(
-            gl,
-            &[
-                Stage {
-                    kind: glow::VERTEX_SHADER,
-                    name: "shadow.vert",
-                    sources: &[VERTEX],
-                },
-                Stage {
-                    kind: glow::FRAGMENT_SHADER,
-                    name: "shadow.frag",
-                    sources: &[FRAGMENT],
-                },
-            ],
-            &[],
-        )?;
+        let program = depth_program(gl)?;
         // SAFETY: object creation on the current context.
         let (framebuffer, texture, nearest) = unsafe {
             let nearest = gl.create_sampler().map_err(GlError::Call)?;
