@@ -211,6 +211,94 @@ fn a_thin_wall_on_one_big_floor_lets_no_light_into_the_dark_room() {
     }
 }
 
+/// The outward faces of the box `[lo, hi]` (a block), each one quad.
+fn block(lo: [f64; 3], hi: [f64; 3], a: [f64; 3]) -> Vec<Quad> {
+    room(lo, hi, a)
+        .into_iter()
+        .map(|mut q| {
+            q.corners.reverse();
+            q
+        })
+        .collect()
+}
+
+/// Fragments (patches far smaller than a voxel face, module
+/// `voxelize::fragments`) join a neighbour facing the same way, but never
+/// across a wall: blocks of a fifth of a voxel stand on the floor and hang
+/// in the air on both sides of a thin wall, 2 cm from it, and the dark
+/// room stays exactly dark while fragments were joined.
+#[test]
+fn clutter_by_a_thin_wall_joins_no_fragment_across_it() {
+    let s = 0.25;
+    let (x0, x1) = (1.0 + 0.6 * s, 1.0 + 0.64 * s);
+    let mut quads = room([0.0, 0.0, 0.0], [2.3, 1.0, 1.0], [0.7; 3]);
+    let h = 0.5;
+    quads.push(quad(
+        [x0, h, h],
+        [0.0, 0.0, 1.0],
+        [0.0, 1.0, 0.0],
+        h,
+        h,
+        [0.7; 3],
+    ));
+    quads.push(quad(
+        [x1, h, h],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        h,
+        h,
+        [0.7; 3],
+    ));
+    let b = 0.05;
+    for z in [0.15, 0.45, 0.75] {
+        for y in [0.0, 0.5] {
+            quads.extend(block(
+                [x0 - 0.02 - b, y, z],
+                [x0 - 0.02, y + b, z + b],
+                [0.6; 3],
+            ));
+            quads.extend(block(
+                [x1 + 0.02, y, z],
+                [x1 + 0.02 + b, y + b, z + b],
+                [0.6; 3],
+            ));
+        }
+    }
+    let obj = write_quads("acc-clutter-wall", &quads);
+    let mut c = config(&obj, Resolution::VoxelSize(s));
+    let out = obj.with_extension("rad");
+    c.output = Some(out.clone());
+    common::gpu();
+    let report = bake::run(&c, &mut |_| {}).expect("bake").report;
+    assert!(
+        report.voxels.fragments_joined > 0,
+        "the case under test arose: fragments were joined ({:?})",
+        report.voxels
+    );
+    let mut rt = Runtime::new(
+        Baked::load(&out).unwrap(),
+        scene::load(&obj).unwrap(),
+        RuntimeOptions::default(),
+    );
+    let light = Light::Point {
+        position: [0.5, 0.6, 0.5],
+        intensity: [3.0; 3],
+    };
+    let camera = scene_config::Camera {
+        position: [2.25, 0.9, 0.5],
+        target: [x1 as f32, 0.0, 0.5],
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: 90.0,
+    };
+    assert_dark_room(
+        &mut rt,
+        light,
+        camera,
+        |c| c[0] as f64 > x1,
+        "clutter by the wall",
+    );
+}
+
 /// Writes `quads` with emission 1 on every material (Ke appended to the
 /// MTL) and bakes them at `voxel`.
 fn bake_emitting(tag: &str, quads: &[Quad], voxel: f64) -> bake::BakeOutput {

@@ -175,6 +175,11 @@ impl std::fmt::Display for BakeReport {
         writeln!(f, "patches: {} ({})", v.patches, per_dir.join(", "))?;
         writeln!(
             f,
+            "{}; {} fragments joined to a neighbour",
+            v.spread, v.fragments_joined
+        )?;
+        writeln!(
+            f,
             "area: patches {:.6e} of scene {:.6e} ({:.2} %); {} staircase groups merged, {} pieces cut by a wall, {} split where a surface separates them, {} facing a surface within two voxels (kept); covered: {} pieces dropped, {} partly, area {:.3e} ({}); {} albedo components clamped",
             v.patch_area,
             v.scene_area,

@@ -285,6 +285,8 @@ pub struct FileSummary {
     pub bytes_file: u64,
     pub format_version: u32,
     pub patches: u64,
+    /// How evenly the patches share the area.
+    pub spread: crate::core::patch::AreaSpread,
     /// `k` or `"inf"`.
     pub bounces: super::records::BouncesRecord,
     pub reorder: String,
@@ -343,6 +345,10 @@ pub fn describe(path: &Path) -> Result<FileSummary, LoadError> {
         bytes_file,
         format_version: super::FORMAT_VERSION,
         patches: b.patches.len() as u64,
+        spread: crate::core::patch::AreaSpread::of(
+            b.patches.iter().map(|p| f64::from(p.area)),
+            b.options.voxel_size,
+        ),
         bounces: b.options.bounces,
         reorder: b.options.reorder.clone(),
         codec: e.kind.name(),
@@ -396,6 +402,7 @@ impl std::fmt::Display for FileSummary {
                 "one-sided"
             }
         )?;
+        writeln!(f, "{}", self.spread)?;
         let entries = (self.patches * self.patches).max(1) as f64;
         writeln!(
             f,

@@ -430,6 +430,72 @@ pub fn piece_polygon(
         .collect()
 }
 
+/// How evenly a set of patches shares the area: the 10th, 50th and 90th
+/// percentiles of patch area in voxel faces (`size²`), and the patches
+/// below [`AreaSpread::SMALL`] voxel faces, counted and as a share of the
+/// patch area. A budget spent on area has its median near 1 and few small
+/// patches; one spent on fragments (issue 42) a median far below 1.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct AreaSpread {
+    pub p10: f64,
+    pub p50: f64,
+    pub p90: f64,
+    pub small: u64,
+    pub small_area_share: f64,
+}
+
+impl AreaSpread {
+    /// Patches below this many voxel faces are counted as small (the
+    /// voxelization's fragment bound).
+    pub const SMALL: f64 = 0.25;
+
+    /// The spread of `areas` (scene units²) at voxel edge `size`. Empty or
+    /// zero-size input gives zeros.
+    pub fn of(areas: impl IntoIterator<Item = f64>, size: f64) -> AreaSpread {
+        let face = size * size;
+        let mut a: Vec<f64> = areas.into_iter().collect();
+        if a.is_empty() || !(face > 0.0) {
+            return AreaSpread::default();
+        }
+        a.sort_by(f64::total_cmp);
+        // Nearest rank (the smallest value with at least q of the set at or
+        // below it).
+        let q = |f: f64| a[((f * a.len() as f64).ceil() as usize).clamp(1, a.len()) - 1] / face;
+        let total: f64 = a.iter().sum();
+        let small: Vec<f64> = a
+            .iter()
+            .copied()
+            .filter(|&x| x < Self::SMALL * face)
+            .collect();
+        AreaSpread {
+            p10: q(0.1),
+            p50: q(0.5),
+            p90: q(0.9),
+            small: small.len() as u64,
+            small_area_share: if total > 0.0 {
+                small.iter().sum::<f64>() / total
+            } else {
+                0.0
+            },
+        }
+    }
+}
+
+impl std::fmt::Display for AreaSpread {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "patch areas in voxel faces: p10 {:.3}, median {:.3}, p90 {:.3}; {} below {} ({:.2} % of the area)",
+            self.p10,
+            self.p50,
+            self.p90,
+            self.small,
+            Self::SMALL,
+            100.0 * self.small_area_share
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -40,7 +40,13 @@ pub const BUNDLED: &[&str] = &[
 
 /// Scenes generated on demand for accuracy tests and reports, not
 /// committed (`stress.rs` describes them).
-pub const STRESS: &[&str] = &["cornell_panel", "cornell_published", "two_rooms", "odd_box"];
+pub const STRESS: &[&str] = &[
+    "cornell_panel",
+    "cornell_published",
+    "two_rooms",
+    "odd_box",
+    "cluttered_room",
+];
 
 /// An error generating or writing a bundled scene.
 #[derive(Debug, thiserror::Error)]
@@ -173,6 +179,7 @@ pub fn build(name: &str) -> Result<GeneratedScene, GenerateError> {
         "cornell_published" => cornell::build_with("cornell_published", 1e9),
         "two_rooms" => stress::two_rooms(),
         "odd_box" => stress::odd_box(),
+        "cluttered_room" => stress::cluttered_room(),
         _ => {
             return Err(GenerateError::UnknownScene {
                 name: name.to_string(),

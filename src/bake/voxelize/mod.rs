@@ -108,7 +108,7 @@ use crate::bake::error::BakeError;
 use crate::core::bvh::Bvh;
 use crate::core::compute::Backend;
 use crate::core::math::{dot, sub};
-use crate::core::patch::{piece_polygon, Direction, Grid, Patch, Region};
+use crate::core::patch::{piece_polygon, AreaSpread, Direction, Grid, Patch, Region};
 use crate::core::scene::Scene;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -117,6 +117,7 @@ use std::time::Instant;
 
 mod clip;
 mod compare;
+pub mod fragments;
 pub use clip::{cl_pieces, cpu_pieces, grid_coords};
 pub use compare::{compare, compare_pieces, Comparison, PieceComparison};
 
@@ -210,6 +211,11 @@ pub struct VoxelStats {
     /// Extra patches from voxel groups split where a surface separates
     /// their pieces (the two sides of a thin wall's floor, stacked floors).
     pub split_groups: u64,
+    /// Patches far smaller than a voxel face joined to a neighbour that
+    /// shares their light (module `fragments`).
+    pub fragments_joined: u64,
+    /// How evenly the patches share the area ([`AreaSpread`]).
+    pub spread: AreaSpread,
     /// Pieces cut in two by a wall crossing them (module doc, "Pieces cut
     /// by a wall").
     pub cut_pieces: u64,
@@ -816,12 +822,38 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
             resolved[k] = true;
         }
     }
-    let mut targets: BTreeMap<(u64, Direction, u32), ([u32; 3], Acc)> = BTreeMap::new();
+    // Fragments (module `fragments`): the chains' ends are the patches so
+    // far; those far smaller than a voxel face join a neighbour that
+    // shares their light.
+    let mut group_of_end: HashMap<usize, usize> = HashMap::new();
+    let mut end_of_group: Vec<usize> = Vec::new();
+    let mut groups: Vec<fragments::Group> = Vec::new();
     for (k, comp) in comps.iter().enumerate() {
-        let tgt = &comps[target[k]];
         if target[k] != k {
             stats.merged_groups += 1;
         }
+        let g = *group_of_end.entry(target[k]).or_insert_with(|| {
+            end_of_group.push(target[k]);
+            groups.push(fragments::Group {
+                dir: comp.dir,
+                voxels: Vec::new(),
+                area: 0.0,
+                members: Vec::new(),
+            });
+            groups.len() - 1
+        });
+        groups[g].voxels.push(comp.voxel);
+        groups[g].area += comp.acc.area;
+        groups[g].members.extend(comp.members.iter().copied());
+    }
+    let (ends, joined) = fragments::join(&groups, &grid, &bvh);
+    stats.fragments_joined = joined;
+    let target: Vec<usize> = (0..comps.len())
+        .map(|k| end_of_group[ends[group_of_end[&target[k]]]])
+        .collect();
+    let mut targets: BTreeMap<(u64, Direction, u32), ([u32; 3], Acc)> = BTreeMap::new();
+    for (k, comp) in comps.iter().enumerate() {
+        let tgt = &comps[target[k]];
         targets
             .entry((tgt.key, tgt.dir, tgt.local))
             .or_insert((tgt.voxel, Acc::default()))
@@ -889,6 +921,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         stats.patch_area += len;
     }
     stats.patches = patches.len() as u64;
+    stats.spread = AreaSpread::of(patches.iter().map(|p| p.area), grid.size);
     stats.seconds_reduce = start.elapsed().as_secs_f64();
     Ok(Voxelization {
         grid,
