@@ -6,7 +6,7 @@
 // seen (the pixels automatic exposure averages over) and 0 elsewhere.
 // Tone mapping is the CPU's (runtime/tonemap.rs) on the read-back image.
 
-layout(std430, binding = 0) readonly buffer TriangleNormal { float triangle_normal[]; }; // 3 per triangle
+layout(std430, binding = 0) readonly buffer TriangleNormal { float triangle_normal[]; }; // 4 per triangle: normal, twin index bits
 layout(std430, binding = 6) readonly buffer H { float h[]; };              // 3 n, channel-major
 layout(std430, binding = 7) readonly buffer PatchAlbedo { float patch_albedo[]; }; // 3 n, channel-major
 
@@ -17,8 +17,6 @@ uniform vec3 material_albedo;
 uniform float albedo_max;
 uniform vec3 emitted;     // Le = scale Ke / pi of the draw's material
 uniform vec3 eye;
-uniform bool two_sided;
-uniform uint front_triangles;
 uniform uint n;
 uniform int view_mode;    // 0 final, 1 direct, 2 indirect, 3 patches, 4 weights
 
@@ -31,7 +29,7 @@ layout(location = 0) out vec4 radiance;
 const float PI = 3.14159265358979;
 
 vec3 normal_of(uint t) {
-    return vec3(triangle_normal[3u * t], triangle_normal[3u * t + 1u], triangle_normal[3u * t + 2u]);
+    return vec3(triangle_normal[4u * t], triangle_normal[4u * t + 1u], triangle_normal[4u * t + 2u]);
 }
 
 void main() {
@@ -39,12 +37,15 @@ void main() {
     vec3 x = v_position;
     vec3 ng = normal_of(t);
     if (dot(ng, x - eye) >= 0.0) {
-        if (!two_sided) {
-            radiance = vec4(0.0); // seen from behind: black, not covered
+        // The coincident twin faces the camera, if the face has one
+        // (Scene::twin); else the face is seen from behind: black, not
+        // covered.
+        uint twin = floatBitsToUint(triangle_normal[4u * t + 3u]);
+        if (twin == 0xFFFFFFFFu) {
+            radiance = vec4(0.0);
             return;
         }
-        // The coincident twin faces the camera (Scene::with_back_sides).
-        t = t + front_triangles;
+        t = twin;
         ng = normal_of(t);
     }
     vec3 rho = has_texture

@@ -66,7 +66,8 @@ fn cluttered_room_floor_and_walls_get_patches_near_the_target_size() {
         // Floor patches (with the tops of the blocks standing on it: they
         // join the floor's patches as relief), the back wall (z = 8, facing
         // −z) and the side wall (x = 12, facing −x, behind nothing).
-        let surfaces: [(&str, Box<dyn Fn(&Patch) -> bool>); 3] = [
+        type Select = Box<dyn Fn(&Patch) -> bool>;
+        let surfaces: [(&str, Select); 3] = [
             (
                 "floor",
                 Box::new(|p: &Patch| p.direction == Direction::PosY && p.centre[1] < 0.2),
@@ -88,5 +89,70 @@ fn cluttered_room_floor_and_walls_get_patches_near_the_target_size() {
                 "{what}: {name} has {count} patches of mean {mean:.3} m², the even share is {share:.3}"
             );
         }
+    }
+}
+
+/// A room whose walls, floor and ceiling are closed boxes 30 cm thick
+/// (faces outwards), with blocks inside: a model whose solids have
+/// insides.
+fn thick_walled_room() -> std::path::PathBuf {
+    let mut quads = Vec::new();
+    let t = 0.3;
+    let (w, h, d) = (6.0, 3.0, 5.0);
+    let slabs = [
+        ([-t, -t, -t], [w + t, 0.0, d + t]),
+        ([-t, h, -t], [w + t, h + t, d + t]),
+        ([-t, 0.0, -t], [0.0, h, d + t]),
+        ([w, 0.0, -t], [w + t, h, d + t]),
+        ([0.0, 0.0, -t], [w, h, 0.0]),
+        ([0.0, 0.0, d], [w, h, d + t]),
+    ];
+    for (lo, hi) in slabs {
+        quads.extend(common::block(lo, hi, [0.7; 3]));
+    }
+    // Shelves 2 cm thick, closed boxes.
+    for k in 0..60 {
+        let x = 0.3 + 0.09 * k as f64;
+        let y = 0.2 + 0.04 * k as f64;
+        let z = 0.3 + 0.07 * k as f64;
+        quads.extend(common::block(
+            [x, y, z],
+            [x + 0.5, y + 0.02, z + 0.3],
+            [0.5; 3],
+        ));
+    }
+    common::write_quads("thick-walls", &quads)
+}
+
+/// `--two-sided` keeps the count asked for: a room of closed slabs 30 cm
+/// thick and 60 closed shelves 2 cm thick, with back sides everywhere, half
+/// of them inside solids. The voxel-size search leaves the back sides'
+/// covered area out of its covered-share rule (module doc of `voxelize`):
+/// a solid's insides are covered more as voxels grow, which can fail every
+/// pass coarser than a fine first one, the likely cause of issue 42's
+/// two-sided cathedral (2,000 asked, 18,697 made; the model is not here,
+/// and on this scene the old rule did not bite either).
+#[test]
+fn two_sided_bakes_keep_the_patch_count_at_the_request() {
+    let obj = thick_walled_room();
+    let scene = scene::load(&obj).unwrap().with_back_sides();
+    for target in [300usize, 1000] {
+        let v = voxelize::voxelize(&scene, Resolution::Patches(target), &Backend::Cpu).unwrap();
+        let what = format!(
+            "two-sided, {target} asked: {} patches at {:.3} m, {}; search {:?}; covered {:.3e} \
+             of which back sides {:.3e}",
+            v.patches.len(),
+            v.stats.voxel_size,
+            v.stats.spread,
+            v.stats.search,
+            v.stats.covered_area,
+            v.stats.covered_twin_area
+        );
+        println!("{what}");
+        assert!(v.stats.covered_twin_area > 0.0, "{what}");
+        assert!(
+            (v.patches.len() as f64 / target as f64 - 1.0).abs() <= 0.1,
+            "{what}"
+        );
     }
 }

@@ -31,6 +31,7 @@ pub mod solve;
 pub mod surface_map;
 pub mod transfer;
 pub mod voxelize;
+pub mod winding;
 
 pub use config::{BakeConfig, CodecChoice, ComputeChoice, DEFAULT_ERROR_LIGHTS, ERROR_LIGHTS_SEED};
 pub use report::{BakeReport, CodecSummary, StageTime};
@@ -103,6 +104,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     let TransferStages {
         scene,
         scene_hash,
+        winding,
         vox,
         form_factors: ff,
         facing,
@@ -333,6 +335,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         error_lights: b0_samples.len() as u64,
         error_lights_seed: ERROR_LIGHTS_SEED,
         two_sided: config.two_sided,
+        twinned: winding.twinned.clone(),
     };
     let scene_stored = match &config.output {
         Some(out) => stored_scene_path(out, &config.scene),
@@ -415,6 +418,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
             voxels: vox.stats,
             form_factors: ff.stats.clone(),
             facing,
+            winding,
             transfer: tr.stats.clone(),
             reorder: reorder_stats,
             codec: summary,
@@ -441,6 +445,8 @@ pub struct TransferStages {
     /// scene as loaded (what the file records).
     pub scene: scene::Scene,
     pub scene_hash: SceneHash,
+    /// What the winding check changed (nothing when two-sided).
+    pub winding: winding::Winding,
     pub vox: voxelize::Voxelization,
     pub form_factors: FormFactors,
     pub facing: facing::Facing,
@@ -466,15 +472,27 @@ pub fn transfer_stages(
     // The file records the scene as loaded; two-sided bakes work on its
     // doubled form, which the run time rebuilds from the option.
     let scene_hash = SceneHash::of_scene(&loaded)?;
-    let scene = if config.two_sided {
-        loaded.with_back_sides()
-    } else {
-        loaded
-    };
     stages.push(StageTime {
         stage: "load",
         seconds: t.elapsed().as_secs_f64(),
     });
+    // Faces seen from both sides (wound the wrong way, or single-sided in
+    // open space) given a back side (module `winding`); two-sided bakes
+    // have back sides everywhere.
+    let (scene, winding) = if config.two_sided {
+        (loaded.with_back_sides(), winding::Winding::default())
+    } else {
+        progress("checking each face's winding");
+        let w = winding::check(&loaded);
+        if !w.is_empty() {
+            progress(&w.to_string());
+        }
+        stages.push(StageTime {
+            stage: "winding",
+            seconds: w.seconds,
+        });
+        (loaded.with_back_sides_of(&w.twinned), w)
+    };
 
     progress(&format!("voxelizing on {}", backend.device_name()));
     let t = Instant::now();
@@ -546,6 +564,7 @@ pub fn transfer_stages(
     Ok(TransferStages {
         scene,
         scene_hash,
+        winding,
         vox,
         form_factors: ff,
         facing,

@@ -114,6 +114,8 @@ pub struct BakeReport {
     pub voxels: VoxelStats,
     pub form_factors: FormFactorStats,
     pub facing: crate::bake::facing::Facing,
+    /// Faces turned round or given a back side (module `winding`).
+    pub winding: crate::bake::winding::Winding,
     pub transfer: TransferStats,
     pub reorder: ReorderStats,
     pub codec: CodecSummary,
@@ -155,6 +157,7 @@ impl std::fmt::Display for BakeReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let v = &self.voxels;
         writeln!(f, "device: {}", self.device)?;
+        writeln!(f, "{}", self.winding)?;
         writeln!(
             f,
             "voxels: size {:.6}, grid {}x{}x{}, {} occupied, {} triangle/voxel pieces ({} candidates, {} slivers of total area {:.3e})",

@@ -403,6 +403,14 @@ impl std::fmt::Display for FileSummary {
             }
         )?;
         writeln!(f, "{}", self.spread)?;
+        if !self.options.two_sided {
+            writeln!(
+                f,
+                "winding: {} faces given a back side (seen from both sides; the bake's \
+                 summary names their materials)",
+                self.options.twinned.len()
+            )?;
+        }
         let entries = (self.patches * self.patches).max(1) as f64;
         writeln!(
             f,

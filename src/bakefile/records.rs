@@ -93,6 +93,12 @@ pub struct OptionsRecord {
     /// (false).
     #[serde(default)]
     pub two_sided: bool,
+    /// The faces the winding check gave a back side (triangle indices of
+    /// the scene as loaded, ascending): the run time rebuilds the baked
+    /// scene with `Scene::with_back_sides_of`. Absent when empty (and in
+    /// older files).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub twinned: Vec<u32>,
 }
 
 /// `INFO`: what the bake found and measured, for `info` and for users.

@@ -472,8 +472,9 @@ impl AreaSpread {
             p50: q(0.5),
             p90: q(0.9),
             small: small.len() as u64,
+            // `+ 0.0`: an empty f64 sum is −0.
             small_area_share: if total > 0.0 {
-                small.iter().sum::<f64>() / total
+                small.iter().sum::<f64>() / total + 0.0
             } else {
                 0.0
             },

@@ -245,7 +245,7 @@ impl GlRenderer {
     ) -> Result<GlRenderer, GlError> {
         let baked = &rt.baked;
         let n = rt.n();
-        let scene = GlScene::new(gl, &rt.scene, baked.options.two_sided)?;
+        let scene = GlScene::new(gl, &rt.scene)?;
         let map = GlSurfaceMap::new(gl, &baked.surface_map)?;
         let shadows = ShadowMaps::new(gl, options.shadow_resolution, options.shadow_budget)?;
         let direct = GlDirect::new(

@@ -40,15 +40,18 @@ pub struct GlScene {
     depth_vao: glow::VertexArray,
     depth_vbo: glow::Buffer,
     depth_ebo: glow::Buffer,
-    /// Three f32 per triangle (every triangle, twins included).
+    /// Four words per triangle (every triangle, twins included): the unit
+    /// normal and the twin's index as float bits (`u32::MAX`: none).
     pub normals: glow::Buffer,
     pub draws: Vec<Draw>,
     /// Per material: its albedo texture, when it has one and the scene has
     /// texture coordinates.
     pub textures: Vec<Option<glow::Texture>>,
-    /// Front triangles drawn, and all triangles (twins included).
+    /// The scene's own triangles (drawn), and all triangles (twins
+    /// included).
     pub drawn: usize,
     pub triangles: usize,
+    /// Whether any triangle has a back side.
     pub two_sided: bool,
     /// Bounds of the scene.
     pub lo: [f32; 3],
@@ -56,11 +59,13 @@ pub struct GlScene {
 }
 
 impl GlScene {
-    /// Uploads `scene` (with its twins when `two_sided`). The context must
-    /// be current.
-    pub fn new(gl: &glow::Context, scene: &Scene, two_sided: bool) -> Result<GlScene, GlError> {
+    /// Uploads `scene`: its own triangles are drawn, its twins (back sides,
+    /// `Scene::twins`) are found through their originals when seen from
+    /// behind. The context must be current.
+    pub fn new(gl: &glow::Context, scene: &Scene) -> Result<GlScene, GlError> {
         let triangles = scene.triangles.len();
-        let drawn = if two_sided { triangles / 2 } else { triangles };
+        let drawn = scene.own_triangles();
+        let two_sided = !scene.twins.is_empty();
         let mut order: Vec<usize> = (0..drawn).collect();
         order.sort_by_key(|&t| scene.triangle_material[t]);
         let has_uv = !scene.texcoords.is_empty();
@@ -87,8 +92,14 @@ impl GlScene {
                 words.push(t as u32);
             }
         }
+        // Per triangle its normal and its twin's index (`u32::MAX` for
+        // none), the fourth word as float bits.
         let normals: Vec<f32> = (0..triangles)
-            .flat_map(|t| scene.triangle_normal(t).map(|c| c as f32))
+            .flat_map(|t| {
+                let [x, y, z] = scene.triangle_normal(t).map(|c| c as f32);
+                let twin = scene.twin(t).map_or(u32::MAX, |k| k as u32);
+                [x, y, z, f32::from_bits(twin)]
+            })
             .collect();
         let (lo, hi) = scene.bounds();
         // SAFETY: object creation and uploads on the current context; the

@@ -280,8 +280,6 @@ impl Shade {
             );
             let e = camera.position;
             gl.uniform_3_f32(loc("eye").as_ref(), e[0], e[1], e[2]);
-            gl.uniform_1_i32(loc("two_sided").as_ref(), scene.two_sided as i32);
-            gl.uniform_1_u32(loc("front_triangles").as_ref(), scene.drawn as u32);
             gl.uniform_1_u32(loc("n").as_ref(), n as u32);
             gl.uniform_1_f32(loc("albedo_max").as_ref(), crate::core::scene::ALBEDO_MAX);
             gl.uniform_1_i32(

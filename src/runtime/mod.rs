@@ -191,12 +191,13 @@ impl Runtime {
     /// Prepares `baked` (from `scene`) for frames.
     pub fn new(baked: Baked, scene: Scene, options: RuntimeOptions) -> Runtime {
         let n = baked.patches.len();
-        // A two-sided bake was made of the scene with back sides: its
-        // sample points and surface map index the doubled triangles.
+        // The bake was made of the scene with back sides (everywhere when
+        // two-sided, where the winding check chose otherwise): its sample
+        // points and surface map index that scene's triangles.
         let scene = if baked.options.two_sided {
             scene.with_back_sides()
         } else {
-            scene
+            scene.with_back_sides_of(&baked.options.twinned)
         };
         let gather = CompressedGather::new(&baked.matrix, options.simd);
         let emission = Emission::new(&baked, &scene);

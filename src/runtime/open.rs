@@ -104,12 +104,8 @@ impl Runtime {
         let (k, t) = self.direct.closest_hit(origin, scale(d, far))?;
         let mut tri = self.direct.bvh().order[k as usize] as usize;
         if dot(self.scene.triangle_normal(tri), d) >= 0.0 {
-            if !self.baked.options.two_sided {
-                return None;
-            }
-            // `Scene::with_back_sides`: twins are half the triangles apart.
-            let half = self.scene.triangles.len() / 2;
-            tri = if tri < half { tri + half } else { tri - half };
+            // The coincident back side faces the ray, if there is one.
+            tri = self.scene.twin(tri)?;
         }
         Some((tri, add(origin, scale(d, t * far))))
     }

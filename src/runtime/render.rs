@@ -175,7 +175,6 @@ pub fn render(
     let far = 4.0 * rt.direct.far();
     let h = rt.h();
     let map = &rt.baked.surface_map;
-    let two_sided = rt.baked.options.two_sided;
     let rows: Vec<(Vec<[f32; 3]>, Vec<bool>, RenderStats)> = (0..height)
         .into_par_iter()
         .map(|py| {
@@ -208,14 +207,15 @@ pub fn render(
                 s.hits += 1;
                 let mut tri = bvh.order[k as usize] as usize;
                 if dot(scene.triangle_normal(tri), d) >= 0.0 {
-                    if !two_sided {
-                        s.back_faces += 1;
-                        continue;
+                    // The coincident twin faces the camera, if the face has
+                    // one (`Scene::twin`).
+                    match scene.twin(tri) {
+                        Some(twin) => tri = twin,
+                        None => {
+                            s.back_faces += 1;
+                            continue;
+                        }
                     }
-                    // The coincident twin faces the camera
-                    // (`Scene::with_back_sides`: twins are T apart).
-                    let half = scene.triangles.len() / 2;
-                    tri = if tri < half { tri + half } else { tri - half };
                 }
                 let ng = scene.triangle_normal(tri);
                 cov[px] = true;

@@ -148,3 +148,71 @@ pub fn printed_exposure(stderr: &str) -> String {
         .unwrap_or_else(|| panic!("no exposure printed: {stderr}"))
         .to_string()
 }
+
+/// The faces of the axis-aligned box `[lo, hi]`, each one quad facing
+/// outwards (a block), albedo `a`.
+pub fn block(lo: [f64; 3], hi: [f64; 3], a: [f64; 3]) -> Vec<Quad> {
+    let c: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
+    let h: [f64; 3] = std::array::from_fn(|k| 0.5 * (hi[k] - lo[k]));
+    let mut q = Vec::new();
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for side in [-1.0, 1.0] {
+            let mut cc = c;
+            cc[axis] += side * h[axis];
+            let mut eu = [0.0; 3];
+            eu[u] = 1.0;
+            let mut ev = [0.0; 3];
+            // u × v is +axis; the face at −axis turns v round.
+            ev[v] = side;
+            q.push(quad(cc, eu, ev, h[u], h[v], a));
+        }
+    }
+    q
+}
+
+/// A 3 × 2 × 2 m room with a single-sided partition (x = 1.5, 1.2 m high,
+/// facing −x) and a single-sided seat (a quad 0.45 m above the floor,
+/// facing up), both seen from both sides and without back faces. With
+/// `right`, every face of the room is wound towards it; without, the
+/// ceiling and the +z wall face outwards: a user's model with faces wound
+/// either way. The quads whose backs the room sees (without `right`):
+/// ceiling, +z wall, partition, seat.
+pub fn mixed_winding_room(right: bool) -> PathBuf {
+    let mut quads: Vec<Quad> = block([0.0; 3], [3.0, 2.0, 2.0], [0.7; 3])
+        .into_iter()
+        .enumerate()
+        .map(|(k, mut q)| {
+            // block's order: −x, +x, −y, +y (ceiling), −z, +z.
+            if right || (k != 3 && k != 5) {
+                q.corners.reverse();
+            }
+            q
+        })
+        .collect();
+    let partition = quad(
+        [1.5, 0.6, 1.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 1.0, 0.0],
+        1.0,
+        0.6,
+        [0.6, 0.7, 0.8],
+    );
+    let seat = quad(
+        [2.4, 0.45, 1.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 0.0],
+        0.2,
+        0.2,
+        [0.8, 0.5, 0.3],
+    );
+    quads.extend([partition, seat]);
+    write_quads(
+        if right {
+            "winding-right"
+        } else {
+            "winding-mixed"
+        },
+        &quads,
+    )
+}

@@ -231,6 +231,11 @@ pub struct VoxelStats {
     pub partly_covered_pieces: u64,
     pub covered_area: f64,
     pub covered_area_per_direction: [f64; 6],
+    /// The part of `covered_area` on back sides (`Scene::twins`: every
+    /// triangle's with `--two-sided`), and the back sides' whole area: a
+    /// solid's back sides face its inside and are covered by design.
+    pub covered_twin_area: f64,
+    pub twin_area: f64,
     /// Patch albedo components outside [0, ALBEDO_MAX] after averaging, clamped.
     pub clamped_albedo: u64,
     /// Total patch area and total scene area (scene units²).
@@ -324,8 +329,15 @@ pub fn voxelize(
             // their light is lost (a room asked for 3 patches lost 40 % of
             // its area), however close the count is to the target. A pass
             // without patches is never taken.
-            let share =
-                |v: &Voxelization| v.stats.covered_area / v.stats.scene_area.max(f64::MIN_POSITIVE);
+            // Back sides (two-sided bakes, faces the winding check gave
+            // one) are left out: a solid's insides are covered by design,
+            // more of them as voxels grow, and counting them can refuse
+            // every pass coarser than a fine first one (the likely cause of
+            // a two-sided cathedral asked for 2,000 patches making 18,697).
+            let share = |v: &Voxelization| {
+                (v.stats.covered_area - v.stats.covered_twin_area).max(0.0)
+                    / (v.stats.scene_area - v.stats.twin_area).max(f64::MIN_POSITIVE)
+            };
             let err_of = |v: &Voxelization| (v.stats.patches as f64 / target as f64 - 1.0).abs();
             let mut least = f64::INFINITY;
             for _ in 0..8 {
@@ -452,6 +464,11 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         scene_area: scene.surface_area(),
         ..Default::default()
     };
+    // Back sides are the last triangles (`Scene::twins`).
+    let first_twin = scene.own_triangles();
+    stats.twin_area = (first_twin..scene.triangles.len())
+        .map(|t| scene.triangle_area(t))
+        .sum();
     // Per-triangle facing direction and unit normal (f64, from the winding).
     let normals: Vec<[f64; 3]> = scene.triangle_normals();
     let mut kept: Vec<(u64, Direction, u32, usize)> = Vec::with_capacity(pieces.len());
@@ -592,6 +609,9 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         let a = pieces[i].area * s2 * covered_share;
         stats.covered_area += a;
         stats.covered_area_per_direction[dir as usize] += a;
+        if tri as usize >= first_twin {
+            stats.covered_twin_area += a;
+        }
         if covered_share >= 1.0 {
             stats.covered_pieces += 1;
             hidden_pieces.push(OwnedPiece {

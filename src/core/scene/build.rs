@@ -369,6 +369,7 @@ pub(super) fn build_scene(
         materials,
         repairs,
         warnings: st.warnings,
+        twins: Vec::new(),
     })
 }
 

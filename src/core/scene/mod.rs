@@ -144,6 +144,11 @@ pub struct Scene {
     pub repairs: Repairs,
     /// Human-readable warnings (missing MTL, missing textures, ...).
     pub warnings: Vec<String>,
+    /// Back sides added to some triangles ([`Scene::with_back_sides`],
+    /// [`Scene::with_back_sides_of`]): the last `twins.len()` triangles are
+    /// the reversed copies of the triangles listed here, in this
+    /// (ascending) order. Empty for a scene as loaded.
+    pub twins: Vec<u32>,
 }
 
 /// Axis-aligned bounds as they appear in the JSON summary.
@@ -213,7 +218,7 @@ impl Scene {
     }
 
     /// The three corners of triangle `t` in `f64`.
-    fn corners(&self, t: usize) -> [[f64; 3]; 3] {
+    pub fn corners(&self, t: usize) -> [[f64; 3]; 3] {
         self.triangles[t].map(|v| self.positions[v as usize].map(f64::from))
     }
 
@@ -232,20 +237,77 @@ impl Scene {
     /// cover it (a coincident front face cancels a back face,
     /// [`crate::bake::cover`]).
     pub fn with_back_sides(&self) -> Scene {
+        let all: Vec<u32> = (0..self.triangles.len() as u32).collect();
+        self.with_back_sides_of(&all)
+    }
+
+    /// The scene with a reversed copy (a back side, as
+    /// [`Scene::with_back_sides`] makes) of each triangle in `twinned`
+    /// appended, in that order (`twinned` must be ascending, without
+    /// repeats; [`Scene::twins`] records it). The winding check
+    /// (`bake::winding`) chooses the list; the bake file records it and the
+    /// run time rebuilds the baked scene with this. Twins get vertices of
+    /// their own, with reversed normals. Indices out of range are ignored.
+    pub fn with_back_sides_of(&self, twinned: &[u32]) -> Scene {
         let mut s = self.clone();
-        let v = self.positions.len() as u32;
-        s.positions.extend_from_slice(&self.positions);
-        s.normals
-            .extend(self.normals.iter().map(|n| [-n[0], -n[1], -n[2]]));
-        s.texcoords.extend_from_slice(&self.texcoords);
-        s.triangles.extend(
-            self.triangles
-                .iter()
-                .map(|t| [t[0] + v, t[2] + v, t[1] + v]),
-        );
-        s.triangle_material
-            .extend_from_slice(&self.triangle_material);
+        let twinned: Vec<u32> = twinned
+            .iter()
+            .copied()
+            .filter(|&t| (t as usize) < self.triangles.len())
+            .collect();
+        if twinned.is_empty() {
+            return s;
+        }
+        // The twins' vertices: every vertex a twinned triangle uses, once,
+        // in vertex order (so that with every triangle twinned, vertex `v`'s
+        // copy is `v + V`, as files baked two-sided before this function
+        // existed index them).
+        let mut used = vec![false; self.positions.len()];
+        for &t in &twinned {
+            for &v in &s.triangles[t as usize] {
+                used[v as usize] = true;
+            }
+        }
+        let mut remap: Vec<u32> = vec![u32::MAX; self.positions.len()];
+        for v in (0..self.positions.len()).filter(|&v| used[v]) {
+            remap[v] = s.positions.len() as u32;
+            s.positions.push(self.positions[v]);
+            if let Some(n) = self.normals.get(v) {
+                s.normals.push([-n[0], -n[1], -n[2]]);
+            }
+            if let Some(uv) = self.texcoords.get(v) {
+                s.texcoords.push(*uv);
+            }
+        }
+        for &t in &twinned {
+            let tri = s.triangles[t as usize];
+            s.triangles.push([
+                remap[tri[0] as usize],
+                remap[tri[2] as usize],
+                remap[tri[1] as usize],
+            ]);
+            s.triangle_material.push(self.triangle_material[t as usize]);
+        }
+        s.twins = twinned;
         s
+    }
+
+    /// The coincident reversed copy of triangle `t` (its twin, for a twin
+    /// the triangle it copies), if it has one ([`Scene::twins`]).
+    pub fn twin(&self, t: usize) -> Option<usize> {
+        let first = self.triangles.len() - self.twins.len();
+        if t >= first {
+            return self.twins.get(t - first).map(|&o| o as usize);
+        }
+        self.twins
+            .binary_search(&(t as u32))
+            .ok()
+            .map(|k| first + k)
+    }
+
+    /// Triangles that are not twins: the scene's own, drawn by a renderer.
+    pub fn own_triangles(&self) -> usize {
+        self.triangles.len() - self.twins.len()
     }
 
     /// Every triangle's unit normal ([`Scene::triangle_normal`]), in triangle
