@@ -562,11 +562,17 @@ pub(crate) struct BakeArgs {
     /// not measure; at most 4096).
     #[arg(long, value_name = "N", default_value_t = bake::DEFAULT_ERROR_LIGHTS)]
     pub(crate) error_lights: usize,
-    /// Patches on both sides of every surface, for scenes whose faces are
-    /// not reliably wound towards the viewer (recorded in the file; `info`
-    /// shows it).
-    #[arg(long)]
+    /// Patches on both sides of every surface (recorded in the file; `info`
+    /// shows it). Without it, the faces the scene sees from behind (wound
+    /// the wrong way, or single-sided panels seen from both sides) get a
+    /// back side there only, listed in the bake's summary.
+    #[arg(long, conflicts_with = "as_wound")]
     pub(crate) two_sided: bool,
+    /// Use every face as wound: no face gets a back side where the scene
+    /// sees it from behind (for models one-sided by design, or comparisons
+    /// with one-sided renderers).
+    #[arg(long)]
+    pub(crate) as_wound: bool,
     /// T_inf by `solve` (a blocked LU solve, the default) or `doubling`
     /// (the series, doubled until it converges).
     #[arg(long, value_name = "METHOD")]
@@ -652,6 +658,7 @@ impl BakeArgs {
             codec,
             error_lights: self.error_lights,
             two_sided: self.two_sided,
+            as_wound: self.as_wound,
             near_field_rays: self.near_field_rays,
             near_field_min_form_factor: self.near_field_min_form_factor,
             output: self.output,

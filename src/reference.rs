@@ -12,7 +12,8 @@
 //! one light definition of [`crate::core::light`]) — then continues from
 //! `y_1` with `β ← β ρ_1`, and so on (the cosine pdf cancels the cosine and
 //! the `1/π` of a diffuse surface's radiance). A path ends at a back face
-//! (a surface emits and reflects only on its front, as the bake assumes),
+//! (a surface emits and reflects only on its front, as the bake assumes)
+//! unless the face has a back side (`Scene::twin`), which it meets instead,
 //! when it leaves the scene, or by Russian roulette once `β` falls below
 //! 1/8 (survival probability `8 β`, unbiased). Albedo and emission are the
 //! material's (`Kd` × the texture's mean, `Ke`), as the bake's patches.
@@ -100,10 +101,19 @@ impl<'a> PathTracer<'a> {
             let Some((k, t)) = self.direct.closest_hit(o, scale(d, self.far)) else {
                 break;
             };
-            let tri = bvh.order[k as usize] as usize;
-            let ng = self.scene.triangle_normal(tri);
+            let mut tri = bvh.order[k as usize] as usize;
+            let mut ng = self.scene.triangle_normal(tri);
             if dot(ng, d) >= 0.0 {
-                break;
+                // A back side (`Scene::twin`) coincides with this back face
+                // and faces the path: the path meets it (the renderer's
+                // rule); else the path ends.
+                match self.scene.twin(tri) {
+                    Some(twin) => {
+                        tri = twin;
+                        ng = self.scene.triangle_normal(tri);
+                    }
+                    None => break,
+                }
             }
             let y = add(o, scale(d, t * self.far));
             let m = &self.scene.materials[self.scene.triangle_material[tri] as usize];
@@ -194,7 +204,7 @@ impl PathTracer<'_> {
             let d = cosine_direction(n, &mut rng);
             if let Some((k, _)) = self.direct.closest_hit(o, scale(d, self.far)) {
                 let tri = bvh.order[k as usize] as usize;
-                if dot(self.scene.triangle_normal(tri), d) < 0.0 {
+                if dot(self.scene.triangle_normal(tri), d) < 0.0 || self.scene.twin(tri).is_some() {
                     hits += 1;
                 }
             }

@@ -108,6 +108,7 @@ fn bake_reports_counts_and_exports_patches() {
         stages,
         [
             "load",
+            "winding",
             "voxelize",
             "form factors",
             "transfer",

@@ -203,3 +203,61 @@ fn models_without_an_inside_are_framed_from_outside() {
         assert_sees_a_lit_front(&scene, &config, tag);
     }
 }
+
+/// "The default camera looks at the scene's largest open space" (issue
+/// 42): a hall 24 × 5 × 7 m turned 33°, cluttered with 40 blocks on its
+/// floor, beside a closed small room 4 × 3 × 4 m. The eye stands in the
+/// hall, looks along its length (within 30°), and the
+/// middle of the view is at least half the hall's length away: not into a
+/// corner, a wall or the clutter.
+#[test]
+fn the_eye_looks_along_the_largest_open_space() {
+    let e = frame(33f64.to_radians());
+    let c = [120.0, 3.0, -40.0];
+    let half = [12.0, 2.5, 3.5];
+    let mut quads = boxed(c, e, half, true, false);
+    // The small room beyond the hall's +z wall, a closed box of its own.
+    let rc: [f64; 3] =
+        std::array::from_fn(|k| c[k] + 6.0 * e[0][k] - 1.0 * e[1][k] + 5.5 * e[2][k]);
+    quads.extend(boxed(rc, e, [2.0, 1.5, 2.0], true, false));
+    for i in 0..40 {
+        let x = -10.0 + 0.5 * i as f64;
+        let z = -2.5 + 5.0 * ((i * 7 % 11) as f64 / 11.0);
+        let bc: [f64; 3] =
+            std::array::from_fn(|k| c[k] + x * e[0][k] - 2.2 * e[1][k] + z * e[2][k]);
+        quads.extend(boxed(bc, e, [0.2, 0.3, 0.2], false, false));
+    }
+    let scene = load("default-hall", &quads);
+    let (config, placement) = default_config(&scene);
+    config.validate().expect("the default validates");
+    assert_eq!(placement, Placement::InsidePoint, "{}", config.description);
+    let eye = local(config.camera.position.map(f64::from), c, e);
+    for a in 0..3 {
+        assert!(
+            eye[a].abs() < half[a],
+            "the eye {eye:?} (hall frame) is not in the hall"
+        );
+    }
+    let o = config.camera.position.map(f64::from);
+    let t = config.camera.target.map(f64::from);
+    let d = local(t, o, e);
+    let horizontal = (d[0] * d[0] + d[2] * d[2]).sqrt();
+    assert!(
+        d[0].abs() / horizontal > 30f64.to_radians().cos(),
+        "the view {d:?} (hall frame) is not along the hall"
+    );
+    let direct = DirectLight::new(&scene);
+    let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    let dir: [f64; 3] = std::array::from_fn(|k| (t[k] - o[k]) / len);
+    let far = 10.0 * direct.far();
+    let (_, s) = direct
+        .bvh()
+        .closest_hit(o, dir.map(|x| x * far))
+        .expect("the middle of the view meets a surface");
+    assert!(
+        s * far > half[0],
+        "the middle of the view is {:.2} m away, under half the hall's length",
+        s * far
+    );
+    assert_sees_a_lit_front(&scene, &config, "hall");
+}

@@ -77,6 +77,11 @@ pub struct BakeConfig {
     ///
     /// [`Scene::with_back_sides`]: crate::core::scene::Scene::with_back_sides
     pub two_sided: bool,
+    /// Use every face as wound: the winding check (`bake::winding`) is
+    /// skipped and no face gets a back side of its own (for one-sided
+    /// models by design, or comparisons with renderers whose surfaces are
+    /// one-sided).
+    pub as_wound: bool,
     /// Rays per patch of the near-field correction (0: none;
     /// [`crate::bake::near_field`]).
     pub near_field_rays: u32,
@@ -107,6 +112,7 @@ impl BakeConfig {
             codec: CodecChoice::default(),
             error_lights: DEFAULT_ERROR_LIGHTS,
             two_sided: false,
+            as_wound: false,
             near_field_rays: crate::bake::near_field::DEFAULT_RAYS,
             near_field_min_form_factor: crate::bake::near_field::MIN_FORM_FACTOR,
             output: None,
@@ -134,6 +140,14 @@ impl BakeConfig {
 
     /// Checks option values that do not depend on the scene.
     pub fn validate(&self) -> Result<(), BakeError> {
+        if self.two_sided && self.as_wound {
+            return Err(BakeError::InvalidOption {
+                option: "as_wound",
+                value: "true".into(),
+                expected: "false with two_sided (back sides everywhere, or as wound: not both)"
+                    .into(),
+            });
+        }
         crate::bake::near_field::check_options(
             self.near_field_rays,
             self.near_field_min_form_factor,

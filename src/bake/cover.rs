@@ -4,8 +4,14 @@
 //! along its normal is the back of another surface within
 //! [`COVER_DISTANCE`] voxels, or any surface within [`COVER_GAP`] voxels, or
 //! it is enclosed: every ray of a fixed fan around its normal meets a back
-//! face first, at any distance. A back face with a coincident front face
-//! (a two-sided surface modelled as two triangles) is no back. The
+//! face first, at any distance, or it is *flush and blind*: another surface
+//! lies on it (a coincident triangle crosses its normal within the lift)
+//! and no ray of the fan from beyond it meets the front of any surface
+//! (the bottom of a block standing on a closed room's floor, whose front
+//! is outside the room; left uncovered, such pieces joined each other
+//! under the floor and beneath a thin wall, a leak). A two-sided surface
+//! modelled as two coincident triangles is flush too, but sees the scene.
+//! A back face with a coincident front face is no back. The
 //! voxelizer uses it for which pieces and how much of them a patch stands
 //! for, the rays form factors for which ray origins a partly covered piece
 //! casts from, the surface map for the patches' sample points.
@@ -88,7 +94,34 @@ impl<'a> Cover<'a> {
     /// the point is enclosed.
     pub fn covered(&self, x: [f64; 3], n: [f64; 3], tri: u32) -> bool {
         let o: [f64; 3] = std::array::from_fn(|q| x[q] + self.lift * n[q] - self.shift[q]);
-        self.first_surface_covers(o, n, tri) || self.enclosed(o, n, tri)
+        self.first_surface_covers(o, n, tri)
+            || self.enclosed(o, n, tri)
+            || self.flush_and_blind(o, n, tri)
+    }
+
+    /// Another triangle crosses the normal at the point within the lift on
+    /// either side (`o` is the lifted point, shifted), and no ray of the
+    /// fan from `o` meets a front face: the point lies on another surface
+    /// and faces nothing of the scene (module doc).
+    fn flush_and_blind(&self, o: [f64; 3], n: [f64; 3], tri: u32) -> bool {
+        let (bvh, normals) = (self.bvh, self.normals);
+        let below: [f64; 3] = std::array::from_fn(|q| o[q] - 2.0 * self.lift * n[q]);
+        let flush = bvh
+            .any_hit(below, n.map(|v| v * 2.0 * self.lift), |k, _| {
+                bvh.order[k as usize] == tri
+            })
+            .is_some();
+        flush
+            && (0..ENCLOSED_RAYS).all(|k| {
+                let d = fan_direction(n, k, ENCLOSED_RAYS);
+                match self.bvh.closest_hit(o, d.map(|v| v * self.reach)) {
+                    None => true,
+                    Some((leaf, _)) => {
+                        let hit = bvh.order[leaf as usize];
+                        hit == tri || dot(normals[hit as usize], d) >= 0.0
+                    }
+                }
+            })
     }
 
     /// The first surface along the normal from `o` (shifted) decides: its

@@ -481,6 +481,8 @@ pub fn transfer_stages(
     // have back sides everywhere.
     let (scene, winding) = if config.two_sided {
         (loaded.with_back_sides(), winding::Winding::default())
+    } else if config.as_wound {
+        (loaded, winding::Winding::default())
     } else {
         progress("checking each face's winding");
         let w = winding::check(&loaded);

@@ -26,7 +26,8 @@
 //! blocks, so a fragment never joins a patch in another room and no leak
 //! returns; two baluster sides facing the same way, or two blocks' sides
 //! on one floor, join. Of the patches that qualify, the nearest (closest
-//! pair of pieces) wins.
+//! pair of pieces) wins. A piece with a surface right in front has no
+//! open space and joins through none of its points.
 //!
 //! Bounds keep the result a patch: a fragment joins a patch of at least
 //! [`FRAGMENT`] voxel faces freely (it adds little), another fragment only
@@ -58,13 +59,14 @@ pub const FRAGMENT_SPAN: u32 = 3;
 const PAIRS: usize = 4;
 
 /// A patch before fragments are joined: its direction, the voxels its
-/// pieces lie in, its area (scene units²) and its pieces' points and unit
-/// normals (world coordinates).
+/// pieces lie in, its area (scene units², from the host's coordinates, so
+/// that the OpenCL and CPU pieces give the same decisions) and its pieces'
+/// points, unit normals (world coordinates) and triangles.
 pub struct Group {
     pub dir: Direction,
     pub voxels: Vec<[u32; 3]>,
     pub area: f64,
-    pub members: Vec<([f64; 3], [f64; 3])>,
+    pub members: Vec<([f64; 3], [f64; 3], u32)>,
 }
 
 /// For each group, the group it ends in (itself when it is kept as it is),
@@ -85,19 +87,26 @@ pub fn join(groups: &[Group], grid: &Grid, bvh: &Bvh) -> (Vec<usize>, u64) {
     let shift = bvh_shift(grid);
     let lift = FRAGMENT_LIFT * grid.size;
     let start = super::CONNECT_LIFT * grid.size;
-    let lifted: Vec<Vec<[f64; 3]>> = groups
+    // A piece with a surface right in front of it (nearer than the start
+    // lift) has no open space to lift into and joins nothing through that
+    // point (`None`). Pieces lying on another surface whose front sees
+    // nothing of the scene (a block's bottom on a closed room's floor) are
+    // covered (`cover`): lifted, their points were under the floor, where
+    // a segment passed beneath a wall.
+    let lifted: Vec<Vec<Option<[f64; 3]>>> = groups
         .par_iter()
         .map(|g| {
             g.members
                 .iter()
-                .map(|&(p, nrm)| {
+                .map(|&(p, nrm, _)| {
                     let o: [f64; 3] = std::array::from_fn(|k| p[k] + start * nrm[k] - shift[k]);
                     let d = nrm.map(|c| c * lift);
                     let h = match bvh.closest_hit(o, d) {
-                        Some((_, t)) => (start + 0.5 * t * lift).min(start + lift),
+                        Some((_, t)) if t * lift <= start => return None,
+                        Some((_, t)) => start + 0.5 * t * lift,
                         None => start + lift,
                     };
-                    std::array::from_fn(|k| p[k] + h * nrm[k])
+                    Some(std::array::from_fn(|k| p[k] + h * nrm[k]))
                 })
                 .collect()
         })
@@ -202,12 +211,19 @@ pub fn join(groups: &[Group], grid: &Grid, bvh: &Bvh) -> (Vec<usize>, u64) {
             if (0..3).any(|k| hi.1[k].max(lo.1[k]) - hi.0[k].min(lo.0[k]) >= FRAGMENT_SPAN) {
                 continue;
             }
-            // The closest pairs of pieces, tested until one is clear.
+            // The closest pairs of pieces with open space in front, tested
+            // until one is joined through it.
             let mut pairs: Vec<(f64, usize, usize, usize, usize)> = Vec::new();
             for &g in &parts[r] {
                 for (i, p) in groups[g].members.iter().enumerate() {
+                    if lifted[g][i].is_none() {
+                        continue;
+                    }
                     for &h in &parts[c] {
                         for (j, q) in groups[h].members.iter().enumerate() {
+                            if lifted[h][j].is_none() {
+                                continue;
+                            }
                             let d = crate::core::math::norm(crate::core::math::sub(p.0, q.0));
                             pairs.push((d, g, i, h, j));
                         }
@@ -225,7 +241,8 @@ pub fn join(groups: &[Group], grid: &Grid, bvh: &Bvh) -> (Vec<usize>, u64) {
             if pairs
                 .iter()
                 .take(PAIRS)
-                .any(|&(_, g, i, h, j)| open_path(lifted[g][i], lifted[h][j], dir))
+                .filter_map(|&(_, g, i, h, j)| lifted[g][i].zip(lifted[h][j]))
+                .any(|(a, b)| open_path(a, b, dir))
             {
                 best = Some((near, c));
             }

@@ -560,7 +560,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
     // or where a part of it is covered, its first visible point (a floor
     // triangle reaching under a box belongs with the floor outside it,
     // where it is seen).
-    let covered: Vec<(f64, [f64; 3])> = kept
+    let covered: Vec<(f64, [f64; 3], f64)> = kept
         .par_iter()
         .map(|&(_, _, tri, i)| {
             let p = &pieces[i];
@@ -597,15 +597,38 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
                 .collect();
             let share = hidden.iter().filter(|&&h| h).count() as f64 / points.len() as f64;
             let seen = hidden.iter().position(|&h| !h).map(|k| points[k]);
-            (share, if share > 0.0 { seen.unwrap_or(c) } else { c })
+            // The polygon's area from the host's coordinates (the same on
+            // every backend, for the fragments' decisions), else the
+            // piece's.
+            let host_area = if poly.len() >= 3 {
+                let mut sum = [0.0f64; 3];
+                for k in 0..poly.len() {
+                    let x = crate::core::math::cross(
+                        sub(poly[k], poly[0]),
+                        sub(poly[(k + 1) % poly.len()], poly[0]),
+                    );
+                    for q in 0..3 {
+                        sum[q] += x[q];
+                    }
+                }
+                0.5 * dot(sum, sum).sqrt()
+            } else {
+                p.area * s2
+            };
+            (
+                share,
+                if share > 0.0 { seen.unwrap_or(c) } else { c },
+                host_area,
+            )
         })
         .collect();
     let mut hidden_pieces: Vec<OwnedPiece> = Vec::new();
     let mut visible = Vec::with_capacity(kept.len());
     let mut visible_share = Vec::with_capacity(kept.len());
     let mut visible_point = Vec::with_capacity(kept.len());
+    let mut visible_host_area = Vec::with_capacity(kept.len());
     for (k, &(key, dir, tri, i)) in kept.iter().enumerate() {
-        let (covered_share, seen) = covered[k];
+        let (covered_share, seen, host_area) = covered[k];
         let a = pieces[i].area * s2 * covered_share;
         stats.covered_area += a;
         stats.covered_area_per_direction[dir as usize] += a;
@@ -626,6 +649,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
             visible.push((key, dir, tri, i));
             visible_share.push(1.0 - covered_share);
             visible_point.push(seen);
+            visible_host_area.push(host_area * (1.0 - covered_share));
         }
     }
     let kept = visible;
@@ -667,6 +691,11 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         /// Its pieces' centroids (a visible point where part of one is covered)
         /// and normals.
         members: Vec<([f64; 3], [f64; 3])>,
+        /// Its pieces' triangles, in `members`' order.
+        tris: Vec<u32>,
+        /// Its visible area from the host's coordinates (module
+        /// `fragments`: the same on every backend).
+        host_area: f64,
     }
     let mut comps: Vec<Comp> = Vec::new();
     let mut comps_at: HashMap<(u64, Direction), Vec<usize>> = HashMap::new();
@@ -764,6 +793,8 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
                     local: (comps.len() - first) as u32,
                     acc: Acc::default(),
                     members: Vec::new(),
+                    tris: Vec::new(),
+                    host_area: 0.0,
                 });
                 comps_at
                     .entry((key, dir))
@@ -773,6 +804,8 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
             });
             comps[c].acc.add(&piece.0);
             comps[c].members.push((piece.1, piece.2));
+            comps[c].tris.push(kept[a + k].2);
+            comps[c].host_area += visible_host_area[a + k];
             comp_of_kept[a + k] = c;
         }
         stats.split_groups += (comps.len() - first - 1) as u64;
@@ -863,8 +896,13 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
             groups.len() - 1
         });
         groups[g].voxels.push(comp.voxel);
-        groups[g].area += comp.acc.area;
-        groups[g].members.extend(comp.members.iter().copied());
+        groups[g].area += comp.host_area;
+        groups[g].members.extend(
+            comp.members
+                .iter()
+                .zip(&comp.tris)
+                .map(|(&(p, n), &tri)| (p, n, tri)),
+        );
     }
     let (ends, joined) = fragments::join(&groups, &grid, &bvh);
     stats.fragments_joined = joined;
