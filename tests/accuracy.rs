@@ -11,7 +11,6 @@ mod common;
 use common::{quad, write_quads, Quad};
 use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
-use radiosity::bakefile::baked::Baked;
 use radiosity::bakefile::codec::CodecKind;
 use radiosity::core::scene;
 use radiosity::core::scene_config::{self, Light};
@@ -31,37 +30,27 @@ fn config(obj: &Path, resolution: Resolution) -> BakeConfig {
 }
 
 fn bake_to_runtime(obj: &Path, resolution: Resolution) -> Runtime {
-    let mut c = config(obj, resolution);
-    let out = obj.with_extension("rad");
-    c.output = Some(out.clone());
-    common::gpu();
-    bake::run(&c, &mut |_| {}).expect("bake");
-    Runtime::new(
-        Baked::load(&out).unwrap(),
-        scene::load(obj).unwrap(),
-        RuntimeOptions::default(),
-    )
+    bake_to_runtime_reporting(obj, resolution).0
 }
 
-/// The inward faces of the box `[lo, hi]`, each one quad, albedo `a`.
+/// [`bake_to_runtime`], with the bake's report.
+fn bake_to_runtime_reporting(obj: &Path, resolution: Resolution) -> (Runtime, bake::BakeReport) {
+    let out = obj.with_extension("rad");
+    let (baked, output) = common::bake_to(config(obj, resolution), &out);
+    let rt = Runtime::new(baked, scene::load(obj).unwrap(), RuntimeOptions::default());
+    (rt, output.report)
+}
+
+/// The inward faces of the box `[lo, hi]`, each one quad, albedo `a`
+/// (a block's faces turned round), in the order −x, +x, −y, +y, −z, +z.
 fn room(lo: [f64; 3], hi: [f64; 3], a: [f64; 3]) -> Vec<Quad> {
-    let c: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
-    let h: [f64; 3] = std::array::from_fn(|k| 0.5 * (hi[k] - lo[k]));
-    let mut q = Vec::new();
-    for axis in 0..3 {
-        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-        for side in [-1.0, 1.0] {
-            let mut cc = c;
-            cc[axis] += side * h[axis];
-            let mut eu = [0.0; 3];
-            eu[u] = 1.0;
-            let mut ev = [0.0; 3];
-            // u × v = +axis; the face at −axis faces +axis (inwards).
-            ev[v] = -side;
-            q.push(quad(cc, eu, ev, h[u], h[v], a));
-        }
-    }
-    q
+    common::block(lo, hi, a)
+        .into_iter()
+        .map(|mut q| {
+            q.corners.reverse();
+            q
+        })
+        .collect()
 }
 
 /// Lights `rt` with `light` and checks the dark room (patch centres where
@@ -150,6 +139,48 @@ fn thin_walls_at_any_position_let_no_light_into_the_dark_room() {
     }
 }
 
+/// A 2.3 × 1 × 1 m room of single quads split by a thin wall from x0 to x1
+/// (one quad each side: the face at x0 looks at the lit room, −x, the one
+/// at x1 at the dark room, +x), standing on its floor and reaching its
+/// ceiling and side walls.
+fn room_with_thin_wall(x0: f64, x1: f64) -> Vec<Quad> {
+    let mut quads = room([0.0, 0.0, 0.0], [2.3, 1.0, 1.0], [0.7; 3]);
+    let h = 0.5;
+    quads.push(quad(
+        [x0, h, h],
+        [0.0, 0.0, 1.0],
+        [0.0, 1.0, 0.0],
+        h,
+        h,
+        [0.7; 3],
+    ));
+    quads.push(quad(
+        [x1, h, h],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        h,
+        h,
+        [0.7; 3],
+    ));
+    quads
+}
+
+/// The light in the lit room of [`room_with_thin_wall`], and a view from
+/// inside the dark room towards the wall and the floor along it.
+fn thin_wall_light_and_view(x1: f64) -> (Light, scene_config::Camera) {
+    let light = Light::Point {
+        position: [0.5, 0.6, 0.5],
+        intensity: [3.0; 3],
+    };
+    let camera = scene_config::Camera {
+        position: [2.25, 0.9, 0.5],
+        target: [x1 as f32, 0.0, 0.5],
+        up: [0.0, 1.0, 0.0],
+        fov_y_deg: 90.0,
+    };
+    (light, camera)
+}
+
 /// The user's version of the test above: one room whose every face is a
 /// single quad, split by a thin wall standing on its floor (and reaching
 /// its ceiling and side walls) at any position against the grid. The
@@ -169,57 +200,15 @@ fn a_thin_wall_on_one_big_floor_lets_no_light_into_the_dark_room() {
     ] {
         let x0 = 1.0 + offset * s;
         let x1 = x0 + w * s;
-        let mut quads = room([0.0, 0.0, 0.0], [2.3, 1.0, 1.0], [0.7; 3]);
-        // The wall: its face at x0 looks at the lit room (−x), the one at
-        // x1 at the dark room (+x).
-        let (c, h) = ([0.0, 0.5, 0.5], 0.5);
-        quads.push(quad(
-            [x0, c[1], c[2]],
-            [0.0, 0.0, 1.0],
-            [0.0, 1.0, 0.0],
-            h,
-            h,
-            [0.7; 3],
-        ));
-        quads.push(quad(
-            [x1, c[1], c[2]],
-            [0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0],
-            h,
-            h,
-            [0.7; 3],
-        ));
-        let obj = write_quads("acc-wall-on-floor", &quads);
+        let obj = write_quads("acc-wall-on-floor", &room_with_thin_wall(x0, x1));
         let mut rt = bake_to_runtime(&obj, Resolution::VoxelSize(s));
-        let light = Light::Point {
-            position: [0.5, 0.6, 0.5],
-            intensity: [3.0; 3],
-        };
-        // On pixels: from inside the dark room towards the wall and the
-        // floor along it.
-        let camera = scene_config::Camera {
-            position: [2.25, 0.9, 0.5],
-            target: [x1 as f32, 0.0, 0.5],
-            up: [0.0, 1.0, 0.0],
-            fov_y_deg: 90.0,
-        };
+        let (light, camera) = thin_wall_light_and_view(x1);
         let what = format!("wall {w} voxels at {offset}");
         assert_dark_room(&mut rt, light, camera, |c| c[0] as f64 > x1, &what);
         // The case under test arose: some piece was cut by the wall.
         let cut = rt.baked.surface_map.cuts.len();
         assert!(cut > 0, "wall {w} voxels at {offset}: no piece was cut");
     }
-}
-
-/// The outward faces of the box `[lo, hi]` (a block), each one quad.
-fn block(lo: [f64; 3], hi: [f64; 3], a: [f64; 3]) -> Vec<Quad> {
-    room(lo, hi, a)
-        .into_iter()
-        .map(|mut q| {
-            q.corners.reverse();
-            q
-        })
-        .collect()
 }
 
 /// Fragments (patches far smaller than a voxel face, module
@@ -235,36 +224,19 @@ fn block(lo: [f64; 3], hi: [f64; 3], a: [f64; 3]) -> Vec<Quad> {
 fn clutter_by_a_thin_wall_joins_no_fragment_across_it() {
     let s = 0.25;
     let (x0, x1) = (1.0 + 0.6 * s, 1.0 + 0.64 * s);
-    let mut quads = room([0.0, 0.0, 0.0], [2.3, 1.0, 1.0], [0.7; 3]);
-    let h = 0.5;
-    quads.push(quad(
-        [x0, h, h],
-        [0.0, 0.0, 1.0],
-        [0.0, 1.0, 0.0],
-        h,
-        h,
-        [0.7; 3],
-    ));
-    quads.push(quad(
-        [x1, h, h],
-        [0.0, 1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        h,
-        h,
-        [0.7; 3],
-    ));
+    let mut quads = room_with_thin_wall(x0, x1);
     // Blocks hanging 2 cm from the wall (fragments in the wall's voxel,
     // facing the same ways on both sides), and standing on the floor a
     // voxel away from it.
     let b = 0.05;
     for z in [0.15, 0.45, 0.75] {
         for (y, gap) in [(0.5, 0.02), (0.7, 0.02), (0.0, 0.3)] {
-            quads.extend(block(
+            quads.extend(common::block(
                 [x0 - gap - b, y, z],
                 [x0 - gap, y + b, z + b],
                 [0.6; 3],
             ));
-            quads.extend(block(
+            quads.extend(common::block(
                 [x1 + gap, y, z],
                 [x1 + gap + b, y + b, z + b],
                 [0.6; 3],
@@ -272,31 +244,13 @@ fn clutter_by_a_thin_wall_joins_no_fragment_across_it() {
         }
     }
     let obj = write_quads("acc-clutter-wall", &quads);
-    let mut c = config(&obj, Resolution::VoxelSize(s));
-    let out = obj.with_extension("rad");
-    c.output = Some(out.clone());
-    common::gpu();
-    let report = bake::run(&c, &mut |_| {}).expect("bake").report;
+    let (mut rt, report) = bake_to_runtime_reporting(&obj, Resolution::VoxelSize(s));
     assert!(
         report.voxels.fragments_joined > 0,
         "the case under test arose: fragments were joined ({:?})",
         report.voxels
     );
-    let mut rt = Runtime::new(
-        Baked::load(&out).unwrap(),
-        scene::load(&obj).unwrap(),
-        RuntimeOptions::default(),
-    );
-    let light = Light::Point {
-        position: [0.5, 0.6, 0.5],
-        intensity: [3.0; 3],
-    };
-    let camera = scene_config::Camera {
-        position: [2.25, 0.9, 0.5],
-        target: [x1 as f32, 0.0, 0.5],
-        up: [0.0, 1.0, 0.0],
-        fov_y_deg: 90.0,
-    };
+    let (light, camera) = thin_wall_light_and_view(x1);
     assert_dark_room(
         &mut rt,
         light,

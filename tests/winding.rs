@@ -6,9 +6,7 @@
 mod common;
 
 use radiosity::bake::voxelize::Resolution;
-use radiosity::bake::{self, winding, BakeConfig, CodecChoice, ComputeChoice};
-use radiosity::bakefile::baked::Baked;
-use radiosity::bakefile::codec::CodecKind;
+use radiosity::bake::{self, winding};
 use radiosity::core::scene::{self, Scene};
 use radiosity::core::scene_config::{Camera, Light, SceneConfig};
 use radiosity::runtime::render::{render, View};
@@ -74,20 +72,10 @@ fn faces_seen_from_behind_get_a_back_side_and_no_others() {
 }
 
 fn bake_to_runtime(obj: &Path, two_sided: bool) -> (Runtime, bake::BakeOutput) {
-    let mut c = BakeConfig::new(obj.to_path_buf(), Resolution::VoxelSize(0.25));
+    let mut c = common::bake_config(obj, Resolution::VoxelSize(0.25));
     c.two_sided = two_sided;
-    c.compute = ComputeChoice::OpenCl(Default::default());
-    c.codec = CodecChoice::Fixed(CodecKind::default());
-    c.error_lights = 0;
-    let out = obj.with_extension("rad");
-    c.output = Some(out.clone());
-    common::gpu();
-    let output = bake::run(&c, &mut |_| {}).expect("bake");
-    let rt = Runtime::new(
-        Baked::load(&out).unwrap(),
-        scene::load(obj).unwrap(),
-        RuntimeOptions::default(),
-    );
+    let (baked, output) = common::bake_to(c, &obj.with_extension("rad"));
+    let rt = Runtime::new(baked, scene::load(obj).unwrap(), RuntimeOptions::default());
     (rt, output)
 }
 
