@@ -4,13 +4,14 @@
 //! along its normal is the back of another surface within
 //! [`COVER_DISTANCE`] voxels, or any surface within [`COVER_GAP`] voxels, or
 //! it is enclosed: every ray of a fixed fan around its normal meets a back
-//! face first, at any distance, or it is *flush and blind*: another surface
-//! lies on it (a coincident triangle crosses its normal within the lift)
-//! and no ray of the fan from beyond it meets the front of any surface
-//! (the bottom of a block standing on a closed room's floor, whose front
-//! is outside the room; left uncovered, such pieces joined each other
-//! under the floor and beneath a thin wall, a leak). A two-sided surface
-//! modelled as two coincident triangles is flush too, but sees the scene.
+//! face first, at any distance, or it lies *on a surface inside a solid*:
+//! a coincident triangle facing the other way is there, and from that
+//! triangle's side the first surface is the back of another within the
+//! cover distance, or it is enclosed (the bottom of a block standing on a
+//! floor, where the floor is inside the block; left uncovered, such pieces
+//! faced out under the floor, and joined each other there beneath a thin
+//! wall, a leak). A two-sided surface modelled as two coincident triangles
+//! is not: each face's other side sees the scene, or a thin gap.
 //! A back face with a coincident front face is no back. The
 //! voxelizer uses it for which pieces and how much of them a patch stands
 //! for, the rays form factors for which ray origins a partly covered piece
@@ -96,32 +97,30 @@ impl<'a> Cover<'a> {
         let o: [f64; 3] = std::array::from_fn(|q| x[q] + self.lift * n[q] - self.shift[q]);
         self.first_surface_covers(o, n, tri)
             || self.enclosed(o, n, tri)
-            || self.flush_and_blind(o, n, tri)
+            || self.on_a_surface_inside_a_solid(o, n, tri)
     }
 
-    /// Another triangle crosses the normal at the point within the lift on
-    /// either side (`o` is the lifted point, shifted), and no ray of the
-    /// fan from `o` meets a front face: the point lies on another surface
-    /// and faces nothing of the scene (module doc).
-    fn flush_and_blind(&self, o: [f64; 3], n: [f64; 3], tri: u32) -> bool {
+    /// A triangle facing the other way lies on the point (it crosses the
+    /// normal within the lift on either side; `o` is the lifted point,
+    /// shifted), and that surface is inside a solid there: from its side,
+    /// the first surface is the back of another within the cover distance,
+    /// or it is enclosed (module doc). A block's bottom on a floor is such
+    /// a point (the floor under the block is inside the block); a two-sided
+    /// panel's face is not (its other face sees the scene, or a thin gap).
+    fn on_a_surface_inside_a_solid(&self, o: [f64; 3], n: [f64; 3], tri: u32) -> bool {
         let (bvh, normals) = (self.bvh, self.normals);
         let below: [f64; 3] = std::array::from_fn(|q| o[q] - 2.0 * self.lift * n[q]);
-        let flush = bvh
-            .any_hit(below, n.map(|v| v * 2.0 * self.lift), |k, _| {
-                bvh.order[k as usize] == tri
-            })
-            .is_some();
-        flush
-            && (0..ENCLOSED_RAYS).all(|k| {
-                let d = fan_direction(n, k, ENCLOSED_RAYS);
-                match self.bvh.closest_hit(o, d.map(|v| v * self.reach)) {
-                    None => true,
-                    Some((leaf, _)) => {
-                        let hit = bvh.order[leaf as usize];
-                        hit == tri || dot(normals[hit as usize], d) >= 0.0
-                    }
-                }
-            })
+        let Some(k) = bvh.any_hit(below, n.map(|v| v * 2.0 * self.lift), |k, _| {
+            let hit = bvh.order[k as usize];
+            hit == tri || dot(normals[hit as usize], n) > -0.5
+        }) else {
+            return false;
+        };
+        let other = bvh.order[k as usize];
+        let m = normals[other as usize];
+        // The other surface's point, lifted off it on its side.
+        let p: [f64; 3] = std::array::from_fn(|q| o[q] - self.lift * n[q] + self.lift * m[q]);
+        self.first_surface_is_a_back(p, m, other) || self.enclosed(p, m, other)
     }
 
     /// The first surface along the normal from `o` (shifted) decides: its
@@ -133,17 +132,29 @@ impl<'a> Cover<'a> {
     /// that way and their light was lost). The point's own triangle, met at
     /// a grazing start, is stepped over.
     fn first_surface_covers(&self, o: [f64; 3], n: [f64; 3], tri: u32) -> bool {
+        self.first_surface(o, n, tri)
+            .is_some_and(|(back, d)| back || d <= self.gap)
+    }
+
+    /// [`Cover::first_surface_covers`] without the gap: the first surface
+    /// is the back of another within the cover distance.
+    fn first_surface_is_a_back(&self, o: [f64; 3], n: [f64; 3], tri: u32) -> bool {
+        self.first_surface(o, n, tri).is_some_and(|(back, _)| back)
+    }
+
+    /// The first surface along the normal from `o` (shifted) within the
+    /// cover distance, stepping over `tri`: whether it is a back (without a
+    /// coincident front), and its distance.
+    fn first_surface(&self, o: [f64; 3], n: [f64; 3], tri: u32) -> Option<(bool, f64)> {
         let (bvh, normals) = (self.bvh, self.normals);
         let mut start = 0.0f64;
         for _ in 0..OWN_SKIPS {
             let len = self.cover - start;
             if len <= 0.0 {
-                return false;
+                return None;
             }
             let from: [f64; 3] = std::array::from_fn(|q| o[q] + start * n[q]);
-            let Some((leaf, t)) = bvh.closest_hit(from, n.map(|v| v * len)) else {
-                return false;
-            };
+            let (leaf, t) = bvh.closest_hit(from, n.map(|v| v * len))?;
             let d = start + t * len;
             let hit = bvh.order[leaf as usize];
             if hit == tri {
@@ -151,9 +162,9 @@ impl<'a> Cover<'a> {
                 continue;
             }
             let back = dot(normals[hit as usize], n) > 0.0 && self.front_at(o, n, d, tri).is_none();
-            return back || d <= self.gap;
+            return Some((back, d));
         }
-        false
+        None
     }
 
     /// A surface facing back along the unit direction `d` from `o`
