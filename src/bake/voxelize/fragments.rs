@@ -211,9 +211,16 @@ pub fn join(groups: &[Group], grid: &Grid, bvh: &Bvh) -> (Vec<usize>, u64) {
             if (0..3).any(|k| hi.1[k].max(lo.1[k]) - hi.0[k].min(lo.0[k]) >= FRAGMENT_SPAN) {
                 continue;
             }
-            // The closest pairs of pieces with open space in front, tested
+            // The PAIRS closest pairs of pieces with open space in front
+            // (kept sorted while scanning: no list of every pair), tested
             // until one is joined through it.
-            let mut pairs: Vec<(f64, usize, usize, usize, usize)> = Vec::new();
+            type Pair = (f64, usize, usize, usize, usize);
+            let before = |a: &Pair, b: &Pair| {
+                a.0.total_cmp(&b.0)
+                    .then((a.1, a.2, a.3, a.4).cmp(&(b.1, b.2, b.3, b.4)))
+                    .is_lt()
+            };
+            let mut pairs: Vec<Pair> = Vec::with_capacity(PAIRS + 1);
             for &g in &parts[r] {
                 for (i, p) in groups[g].members.iter().enumerate() {
                     if lifted[g][i].is_none() {
@@ -225,15 +232,17 @@ pub fn join(groups: &[Group], grid: &Grid, bvh: &Bvh) -> (Vec<usize>, u64) {
                                 continue;
                             }
                             let d = crate::core::math::norm(crate::core::math::sub(p.0, q.0));
-                            pairs.push((d, g, i, h, j));
+                            let pair = (d, g, i, h, j);
+                            if pairs.len() == PAIRS && !before(&pair, &pairs[PAIRS - 1]) {
+                                continue;
+                            }
+                            let at = pairs.partition_point(|x| before(x, &pair));
+                            pairs.insert(at, pair);
+                            pairs.truncate(PAIRS);
                         }
                     }
                 }
             }
-            pairs.sort_by(|a, b| {
-                a.0.total_cmp(&b.0)
-                    .then((a.1, a.2, a.3, a.4).cmp(&(b.1, b.2, b.3, b.4)))
-            });
             let near = pairs.first().map_or(f64::INFINITY, |p| p.0);
             if best.is_some_and(|(d, _)| d <= near) {
                 continue;
