@@ -23,8 +23,11 @@
 //! meet the *front* of another surface faces away from a scene that looks
 //! at it, and when such patches make up more than [`REVERSED_WARN_SHARE`]
 //! of the area the bake warns, naming the materials with the most of that
-//! area and the remedies. Blind faces that face the sky in an open scene
-//! (a roof, the top of a box) see backs or nothing behind them and are not
+//! area and the remedies. Blind patches made of faces that have a back
+//! side (`bake::winding` gave them one) are not counted: their back side
+//! is the patch that sees the scene. Blind faces that face the sky in an
+//! open scene (a roof, the top of a box) see backs or nothing behind them
+//! and are not
 //! counted.
 
 use crate::bake::cover::{fan_direction, COVER_LIFT, ENCLOSED_RAYS};
@@ -148,7 +151,20 @@ fn reversed(scene: &Scene, vox: &Voxelization, ff: &FormFactors, total: f64, fac
     for &i in &ff.kept {
         kept[i] = true;
     }
-    let blind: Vec<usize> = (0..vox.patches.len()).filter(|&i| !kept[i]).collect();
+    // Patches whose every piece has a back side (the winding check gave
+    // it one: `Scene::twin`) are the outward halves of faces already
+    // turned towards the scene: not reversed.
+    let mut has_back = vec![true; vox.patches.len()];
+    for piece in &vox.pieces {
+        if let Some(p) = piece.patch {
+            if scene.twin(piece.tri as usize).is_none() {
+                has_back[p as usize] = false;
+            }
+        }
+    }
+    let blind: Vec<usize> = (0..vox.patches.len())
+        .filter(|&i| !kept[i] && !has_back[i])
+        .collect();
     let hits = probe(scene, vox, &blind);
     let mut is_reversed = vec![false; vox.patches.len()];
     let mut area = 0.0;
