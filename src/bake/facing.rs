@@ -27,8 +27,7 @@
 //! side (`bake::winding` gave them one) are not counted: their back side
 //! is the patch that sees the scene. Blind faces that face the sky in an
 //! open scene (a roof, the top of a box) see backs or nothing behind them
-//! and are not
-//! counted.
+//! and are not counted.
 
 use crate::bake::cover::{fan_direction, COVER_LIFT, ENCLOSED_RAYS};
 use crate::bake::error::BakeError;
