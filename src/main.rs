@@ -272,10 +272,25 @@ fn info(path: &Path, json: bool) -> anyhow::Result<()> {
     }
     let s = scene::load(path).with_context(|| format!("loading {}", path.display()))?;
     let summary = s.summary();
+    // Where the scene sees faces from behind (the bake gives them a back
+    // side there: `bake::winding`).
+    let w = bake::winding::check(&s);
     if json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        let mut v = serde_json::to_value(&summary)?;
+        if let Some(map) = v.as_object_mut() {
+            map.insert(
+                "winding".into(),
+                serde_json::json!({
+                    "faces_seen_from_behind": w.twinned.len(),
+                    "area": w.twinned_area,
+                    "materials": w.materials,
+                }),
+            );
+        }
+        println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         print!("{summary}");
+        println!("{w} when baked (--as-wound keeps every face as wound)");
     }
     Ok(())
 }

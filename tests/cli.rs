@@ -58,10 +58,21 @@ fn info_json_has_the_documented_keys() {
         "area",
         "emissive_area",
         "repairs",
+        "winding",
     ] {
         assert!(v.get(key).is_some(), "key {key} missing in {v}");
     }
     assert_eq!(v["triangles"], 1834);
+    assert_eq!(v["winding"]["faces_seen_from_behind"], 0);
+    // A room with faces wound either way: `info` says where, before a bake.
+    let mixed = common::mixed_winding_room(false);
+    let o = radiosity(&["info", mixed.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(
+        text.contains("winding: 8 faces seen from behind") && text.contains("`m3`"),
+        "{text}"
+    );
     // The light quad: 130 mm × 105 mm.
     assert!((v["emissive_area"].as_f64().unwrap() - 13650.0).abs() < 1e-6);
     let o = radiosity(&["info", common::sponza().to_str().unwrap()]);

@@ -114,7 +114,7 @@ pub struct BakeReport {
     pub voxels: VoxelStats,
     pub form_factors: FormFactorStats,
     pub facing: crate::bake::facing::Facing,
-    /// Faces turned round or given a back side (module `winding`).
+    /// Faces given a back side (module `winding`).
     pub winding: crate::bake::winding::Winding,
     pub transfer: TransferStats,
     pub reorder: ReorderStats,

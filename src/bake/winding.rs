@@ -98,7 +98,7 @@ impl std::fmt::Display for Winding {
         let share = |a: f64| 100.0 * a / self.scene_area.max(f64::MIN_POSITIVE);
         write!(
             f,
-            "winding: {} faces given a back side ({:.2} % of the area): seen from behind",
+            "winding: {} faces seen from behind ({:.2} % of the area) get a back side",
             self.twinned.len(),
             share(self.twinned_area)
         )?;
