@@ -13,6 +13,19 @@ fn radiosity(args: &[&str]) -> Output {
         .expect("running the radiosity binary")
 }
 
+/// `radiosity bake OBJ --patches N -o OUT`, which must succeed.
+fn bake_ok(obj: &std::path::Path, patches: u32, out: &std::path::Path) {
+    let o = radiosity(&[
+        "bake",
+        obj.to_str().unwrap(),
+        "--patches",
+        &patches.to_string(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
@@ -643,15 +656,7 @@ fn info_finds_the_scene_from_another_directory() {
         .collect();
     std::fs::write(&obj, inward).unwrap();
     let rad = dir.join("bakes").join("box.rad");
-    let o = radiosity(&[
-        "bake",
-        obj.to_str().unwrap(),
-        "--patches",
-        "150",
-        "-o",
-        rad.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    bake_ok(&obj, 150, &rad);
     let elsewhere = common::temp_dir("cli-info-cwd");
     let o = Command::new(env!("CARGO_BIN_EXE_radiosity"))
         .args(["info", rad.to_str().unwrap()])
@@ -679,15 +684,7 @@ fn info_finds_the_scene_from_another_directory() {
 fn bench_frame_prints_its_tables() {
     let obj = common::bundled_copy("cornell_box", "cli-bench-frame");
     let rad = obj.with_file_name("cb.rad");
-    let o = radiosity(&[
-        "bake",
-        obj.to_str().unwrap(),
-        "--patches",
-        "300",
-        "-o",
-        rad.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    bake_ok(&obj, 300, &rad);
     let o = radiosity(&[
         "bench",
         "frame",
@@ -761,15 +758,7 @@ fn values_that_gave_garbage_are_refused() {
     let obj = common::bundled_copy("cornell_box", "cli-garbage");
     let dir = obj.parent().unwrap().to_path_buf();
     let rad = dir.join("cb.rad");
-    let o = radiosity(&[
-        "bake",
-        obj.to_str().unwrap(),
-        "--patches",
-        "150",
-        "-o",
-        rad.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    bake_ok(&obj, 150, &rad);
     let json = std::fs::read_to_string(obj.with_extension("json")).unwrap();
     let mut config: serde_json::Value = serde_json::from_str(&json).unwrap();
     let cases: Vec<(&str, serde_json::Value, &str)> = vec![

@@ -306,24 +306,8 @@ fn packets_and_cached_blockers_change_no_bit_of_the_direct_light() {
 /// quad's height). Packets and the cached per-point path agree.
 #[test]
 fn a_light_in_a_surfaces_plane_is_not_shadowed_by_it() {
-    let floor = quad(
-        [0.0, 0.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [1.0, 0.0, 0.0],
-        0.5,
-        0.5,
-        [0.5; 3],
-    );
     // The ceiling at y = 0.5 over the whole floor, facing down.
-    let ceiling = quad(
-        [0.0, 0.5, 0.0],
-        [1.0, 0.0, 0.0],
-        [0.0, 0.0, 1.0],
-        0.5,
-        0.5,
-        [0.5; 3],
-    );
-    let s = scene::load(&write_quads("in-plane", &[floor, ceiling])).unwrap();
+    let s = scene::load(&common::floor_under_ceiling("in-plane")).unwrap();
     let v = voxelize_at(&s, 0.25, &Backend::Cpu).unwrap();
     let patches: Vec<_> = v
         .patches

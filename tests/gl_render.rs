@@ -951,23 +951,7 @@ fn gl_textured_images_match_the_cpu_renderer_when_both_filter_bilinearly() {
 fn gl_a_light_in_a_surfaces_plane_lights_the_floor_as_the_cpus() {
     let ctx = context();
     let gl = &ctx.gl;
-    let floor = quad(
-        [0.0, 0.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [1.0, 0.0, 0.0],
-        0.5,
-        0.5,
-        [0.5; 3],
-    );
-    let ceiling = quad(
-        [0.0, 0.5, 0.0],
-        [1.0, 0.0, 0.0],
-        [0.0, 0.0, 1.0],
-        0.5,
-        0.5,
-        [0.5; 3],
-    );
-    let obj = write_quads("gl-in-plane", &[floor, ceiling]);
+    let obj = common::floor_under_ceiling("gl-in-plane");
     let mut rt = bake(&obj, Resolution::VoxelSize(0.25));
     let lights = vec![Light::Point {
         position: [0.1, 0.5, -0.15],

@@ -216,3 +216,26 @@ pub fn mixed_winding_room(right: bool) -> PathBuf {
         &quads,
     )
 }
+
+/// A 1 m square floor (y = 0, facing up) under a ceiling of the same size
+/// at y = 0.5 facing down, centred on the origin: the scene of the tests of
+/// a light in a surface's plane, written as an OBJ.
+pub fn floor_under_ceiling(tag: &str) -> PathBuf {
+    let floor = quad(
+        [0.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 0.0],
+        0.5,
+        0.5,
+        [0.5; 3],
+    );
+    let ceiling = quad(
+        [0.0, 0.5, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        0.5,
+        0.5,
+        [0.5; 3],
+    );
+    write_quads(tag, &[floor, ceiling])
+}
