@@ -48,13 +48,16 @@
 //! [`bake::run`]:
 //! 1. [`core::scene`]: load OBJ + MTL (albedo = `Kd` × linear texture
 //!    average, emission = `Ke`), validate, repair what can be repaired and
-//!    count it.
+//!    count it; [`bake::winding`]: faces the scene sees from behind get a
+//!    back side there (recorded in the file, rebuilt by the run time).
 //! 2. [`bake::voxelize`]: voxel patches ([`core::patch`]) — one per occupied
 //!    voxel and open axis direction, in the mean plane of its geometry, with
 //!    that geometry's projected area (`kernels/voxelize.cl`); what cannot be
 //!    seen (covered points: [`bake::cover`]) is in no patch; a piece that a
 //!    wall thinner than a voxel crosses is first cut along the wall's plane
-//!    ([`bake::cut`]; the cut planes go into the surface map).
+//!    ([`bake::cut`]; the cut planes go into the surface map); patches far
+//!    smaller than a voxel face join a neighbour that shares their light
+//!    ([`bake::voxelize::fragments`]).
 //! 3. [`bake::form_factor`]: form factors `F` between patches with
 //!    visibility (`kernels/form_factor.cl`, a BVH of the original
 //!    triangles, [`core::bvh`]).
