@@ -15,15 +15,7 @@ use radiosity::core::scene_config::Light;
 /// A 1 × 1 floor at y = 0 (facing up), voxel size 0.25 (16 patches), and
 /// optionally a 0.5 × 1 roof at y = 0.5 over its x < 0 half (facing down).
 fn floor(with_roof: bool) -> (scene::Scene, Vec<radiosity::core::patch::Patch>) {
-    let up = quad(
-        [0.0, 0.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [1.0, 0.0, 0.0],
-        0.5,
-        0.5,
-        [0.5; 3],
-    );
-    let mut quads = vec![up];
+    let mut quads = vec![common::unit_floor()];
     if with_roof {
         quads.push(quad(
             [-0.25, 0.5, 0.0],

@@ -51,8 +51,6 @@ pub struct GlScene {
     /// included).
     pub drawn: usize,
     pub triangles: usize,
-    /// Whether any triangle has a back side.
-    pub two_sided: bool,
     /// Bounds of the scene.
     pub lo: [f32; 3],
     pub hi: [f32; 3],
@@ -65,7 +63,6 @@ impl GlScene {
     pub fn new(gl: &glow::Context, scene: &Scene) -> Result<GlScene, GlError> {
         let triangles = scene.triangles.len();
         let drawn = scene.own_triangles();
-        let two_sided = !scene.twins.is_empty();
         let mut order: Vec<usize> = (0..drawn).collect();
         order.sort_by_key(|&t| scene.triangle_material[t]);
         let has_uv = !scene.texcoords.is_empty();
@@ -176,7 +173,6 @@ impl GlScene {
                 textures,
                 drawn,
                 triangles,
-                two_sided,
                 lo,
                 hi,
             })

@@ -217,18 +217,22 @@ pub fn mixed_winding_room(right: bool) -> PathBuf {
     )
 }
 
-/// A 1 m square floor (y = 0, facing up) under a ceiling of the same size
-/// at y = 0.5 facing down, centred on the origin: the scene of the tests of
-/// a light in a surface's plane, written as an OBJ.
-pub fn floor_under_ceiling(tag: &str) -> PathBuf {
-    let floor = quad(
+/// A 1 m square floor at y = 0 facing up, centred on the origin.
+pub fn unit_floor() -> Quad {
+    quad(
         [0.0, 0.0, 0.0],
         [0.0, 0.0, 1.0],
         [1.0, 0.0, 0.0],
         0.5,
         0.5,
         [0.5; 3],
-    );
+    )
+}
+
+/// [`unit_floor`] under a ceiling of the same size at y = 0.5 facing down:
+/// the scene of the tests of a light in a surface's plane, written as an
+/// OBJ.
+pub fn floor_under_ceiling(tag: &str) -> PathBuf {
     let ceiling = quad(
         [0.0, 0.5, 0.0],
         [1.0, 0.0, 0.0],
@@ -237,5 +241,5 @@ pub fn floor_under_ceiling(tag: &str) -> PathBuf {
         0.5,
         [0.5; 3],
     );
-    write_quads(tag, &[floor, ceiling])
+    write_quads(tag, &[unit_floor(), ceiling])
 }

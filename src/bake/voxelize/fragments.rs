@@ -61,12 +61,12 @@ const PAIRS: usize = 4;
 /// A patch before fragments are joined: its direction, the voxels its
 /// pieces lie in, its area (scene units², from the host's coordinates, so
 /// that the OpenCL and CPU pieces give the same decisions) and its pieces'
-/// points, unit normals (world coordinates) and triangles.
+/// points and unit normals (world coordinates).
 pub struct Group {
     pub dir: Direction,
     pub voxels: Vec<[u32; 3]>,
     pub area: f64,
-    pub members: Vec<([f64; 3], [f64; 3], u32)>,
+    pub members: Vec<([f64; 3], [f64; 3])>,
 }
 
 /// For each group, the group it ends in (itself when it is kept as it is),
@@ -84,7 +84,9 @@ pub fn join(groups: &[Group], grid: &Grid, bvh: &Bvh) -> (Vec<usize>, u64) {
         return (owner, 0);
     }
     // Each piece's point lifted into the open space in front of it.
-    let shift = bvh_shift(grid);
+    // BVH coordinates are world coordinates minus the grid's centre (the
+    // shift the voxelizer builds its BVH with).
+    let shift = grid.centre();
     let lift = FRAGMENT_LIFT * grid.size;
     let start = super::CONNECT_LIFT * grid.size;
     // A piece with a surface right in front of it (nearer than the start
@@ -98,7 +100,7 @@ pub fn join(groups: &[Group], grid: &Grid, bvh: &Bvh) -> (Vec<usize>, u64) {
         .map(|g| {
             g.members
                 .iter()
-                .map(|&(p, nrm, _)| {
+                .map(|&(p, nrm)| {
                     let o: [f64; 3] = std::array::from_fn(|k| p[k] + start * nrm[k] - shift[k]);
                     let d = nrm.map(|c| c * lift);
                     let h = match bvh.closest_hit(o, d) {
@@ -271,10 +273,4 @@ pub fn join(groups: &[Group], grid: &Grid, bvh: &Bvh) -> (Vec<usize>, u64) {
     }
     let ends = (0..n).map(|g| root(&mut owner, g)).collect();
     (ends, joined)
-}
-
-/// The shift the scene's BVH was built with (`Bvh::build`'s, the grid's
-/// centre): BVH coordinates are world coordinates minus it.
-fn bvh_shift(grid: &Grid) -> [f64; 3] {
-    grid.centre()
 }

@@ -691,8 +691,6 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         /// Its pieces' centroids (a visible point where part of one is covered)
         /// and normals.
         members: Vec<([f64; 3], [f64; 3])>,
-        /// Its pieces' triangles, in `members`' order.
-        tris: Vec<u32>,
         /// Its visible area from the host's coordinates (module
         /// `fragments`: the same on every backend).
         host_area: f64,
@@ -793,7 +791,6 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
                     local: (comps.len() - first) as u32,
                     acc: Acc::default(),
                     members: Vec::new(),
-                    tris: Vec::new(),
                     host_area: 0.0,
                 });
                 comps_at
@@ -804,7 +801,6 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
             });
             comps[c].acc.add(&piece.0);
             comps[c].members.push((piece.1, piece.2));
-            comps[c].tris.push(kept[a + k].2);
             comps[c].host_area += visible_host_area[a + k];
             comp_of_kept[a + k] = c;
         }
@@ -897,12 +893,7 @@ pub fn reduce(scene: &Scene, grid: Grid, pieces: &[Piece]) -> Result<Voxelizatio
         });
         groups[g].voxels.push(comp.voxel);
         groups[g].area += comp.host_area;
-        groups[g].members.extend(
-            comp.members
-                .iter()
-                .zip(&comp.tris)
-                .map(|(&(p, n), &tri)| (p, n, tri)),
-        );
+        groups[g].members.extend(comp.members.iter().copied());
     }
     let (ends, joined) = fragments::join(&groups, &grid, &bvh);
     stats.fragments_joined = joined;
