@@ -1,9 +1,10 @@
 //! Content hashes: the streaming FNV-1a behind [`SceneHash`], the hash of
-//! a bake's source scene (OBJ, MTL and textures) that tells whether a bake
+//! a bake's source scene (OBJ, MTL and textures; a glTF file, its buffer
+//! and image files and its textures) that tells whether a bake
 //! file still matches its scene.
 
 use super::BakeFileError;
-use crate::core::scene::Scene;
+use crate::core::scene::{ImageSource, Scene};
 use serde::Serialize;
 use std::fs::File;
 use std::io::{self, Read};
@@ -111,6 +112,26 @@ impl SceneHash {
         collect_mtllib(&line, &mut libraries);
 
         let mut mtl = Fnv1a64::new();
+        if crate::core::scene::gltf::is_gltf(obj_path) {
+            // `mtllib` means nothing in a glTF file.
+            libraries.clear();
+            // A glTF file's side files: the buffers and images its URIs
+            // name, in the file's order (a data URI is in the file's bytes).
+            let side = crate::core::scene::files::gltf_side_files(obj_path)
+                .map_err(err(obj_path))?;
+            for path in side {
+                let rel = path.strip_prefix(dir).unwrap_or(&path);
+                mtl.update(rel.to_string_lossy().as_bytes());
+                match File::open(&path) {
+                    Ok(f) if !path.is_dir() => {
+                        mtl.update(&[1]);
+                        let n = hash_stream(f, &mut mtl).map_err(err(&path))?;
+                        mtl.update(&n.to_le_bytes());
+                    }
+                    _ => mtl.update(&[0]),
+                }
+            }
+        }
         for name in &libraries {
             mtl.update(name.as_bytes());
             match File::open(dir.join(name)) {
@@ -125,14 +146,23 @@ impl SceneHash {
         let mut textures = Fnv1a64::new();
         let obj_dir = obj_path.parent().unwrap_or_else(|| Path::new(""));
         for m in &scene.materials {
-            if let Some(t) = &m.diffuse_texture {
-                // The path relative to the OBJ's directory: the same scene
-                // reached through another path hashes the same.
-                let rel = t.strip_prefix(obj_dir).unwrap_or(t);
-                textures.update(rel.to_string_lossy().as_bytes());
-                let f = File::open(t).map_err(err(t))?;
-                let n = hash_stream(f, &mut textures).map_err(err(t))?;
-                textures.update(&n.to_le_bytes());
+            match m.diffuse_texture.as_ref().map(|t| &t.image) {
+                Some(ImageSource::File(t)) => {
+                    // The path relative to the scene file's directory: the
+                    // same scene reached through another path hashes the
+                    // same.
+                    let rel = t.strip_prefix(obj_dir).unwrap_or(t);
+                    textures.update(rel.to_string_lossy().as_bytes());
+                    let f = File::open(t).map_err(err(t))?;
+                    let n = hash_stream(f, &mut textures).map_err(err(t))?;
+                    textures.update(&n.to_le_bytes());
+                }
+                Some(ImageSource::Embedded { label, bytes }) => {
+                    textures.update(label.as_bytes());
+                    textures.update(bytes);
+                    textures.update(&(bytes.len() as u64).to_le_bytes());
+                }
+                None => {}
             }
         }
         Ok(SceneHash {

@@ -151,8 +151,8 @@ impl GlScene {
             let mut textures = Vec::with_capacity(scene.materials.len());
             for m in &scene.materials {
                 let tex = match (&m.diffuse_texture, has_uv) {
-                    (Some(path), true) => match image::open(path) {
-                        Ok(img) => Some(upload_texture(gl, &img.to_rgb8())?),
+                    (Some(t), true) => match t.decode() {
+                        Ok(img) => Some(upload_texture(gl, &img.to_rgb8(), t.wrap)?),
                         // The loader counted it as missing; the CPU
                         // renderer uses the material's albedo too.
                         Err(_) => None,
@@ -216,7 +216,11 @@ impl GlScene {
 /// An sRGB texture with mipmaps, rows as stored in the file (top first:
 /// OBJ's `v` is up, so the shader samples at `(u, 1 − v)`, as the CPU's
 /// [`crate::runtime::texture::Texture::sample`] does).
-fn upload_texture(gl: &glow::Context, img: &image::RgbImage) -> Result<glow::Texture, GlError> {
+fn upload_texture(
+    gl: &glow::Context,
+    img: &image::RgbImage,
+    wrap: [crate::core::scene::Wrap; 2],
+) -> Result<glow::Texture, GlError> {
     // SAFETY: texture creation and an upload of w × h RGB bytes.
     unsafe {
         let t = gl.create_texture().map_err(GlError::Call)?;
@@ -237,8 +241,8 @@ fn upload_texture(gl: &glow::Context, img: &image::RgbImage) -> Result<glow::Tex
         let p = |k: u32, v: u32| gl.tex_parameter_i32(glow::TEXTURE_2D, k, v as i32);
         p(glow::TEXTURE_MIN_FILTER, glow::LINEAR_MIPMAP_LINEAR);
         p(glow::TEXTURE_MAG_FILTER, glow::LINEAR);
-        p(glow::TEXTURE_WRAP_S, glow::REPEAT);
-        p(glow::TEXTURE_WRAP_T, glow::REPEAT);
+        p(glow::TEXTURE_WRAP_S, wrap[0].gl());
+        p(glow::TEXTURE_WRAP_T, wrap[1].gl());
         Ok(t)
     }
 }

@@ -31,7 +31,7 @@
 //! is the final image minus that direct view. `max_depth`, `spp` and `seed`
 //! are parameters (`$max_depth`, `$spp`, `$seed`) of both files.
 
-use crate::core::scene::{Scene, ALBEDO_MAX};
+use crate::core::scene::{Scene, Wrap, ALBEDO_MAX};
 use crate::core::scene_config::{Light, SceneConfig};
 use crate::runtime::texture::Texture;
 use std::fmt::Write as _;
@@ -152,11 +152,17 @@ pub fn export(
             crate::runtime::tonemap::write_pfm(&path, t.width, t.height, &texels)
                 .map_err(io(&path))?;
             summary.textures += 1;
+            // Mitsuba's bitmap has one wrap mode for both axes: the s axis's.
+            let wrap = match tex.wrap[0] {
+                Wrap::Repeat => "repeat",
+                Wrap::MirroredRepeat => "mirror",
+                Wrap::ClampToEdge => "clamp",
+            };
             format!(
                 "<texture type=\"bitmap\" name=\"reflectance\"><string name=\"filename\" \
                  value=\"{name}\"/><boolean name=\"raw\" value=\"true\"/><string \
                  name=\"filter_type\" value=\"bilinear\"/><string name=\"wrap_mode\" \
-                 value=\"repeat\"/></texture>"
+                 value=\"{wrap}\"/></texture>"
             )
         } else {
             format!("<rgb name=\"reflectance\" value=\"{}\"/>", rgb(mat.albedo))

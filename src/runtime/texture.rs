@@ -5,22 +5,28 @@
 //! albedo. (The GL renderer samples the same texture with mipmaps; its
 //! tests allow for the difference under minification.)
 
-use crate::core::scene::{srgb_to_linear, Scene, ALBEDO_MAX};
-use std::path::Path;
+use crate::core::scene::{srgb_to_linear, DiffuseTexture, Scene, Wrap, ALBEDO_MAX};
 
 /// A linear RGB texture.
 pub struct Texture {
     pub width: usize,
     pub height: usize,
     pub texels: Vec<[f32; 3]>,
+    /// Wrap mode per axis (`[s, t]`).
+    pub wrap: [Wrap; 2],
 }
 
 impl Texture {
-    /// Reads and linearises `path`.
-    pub fn load(path: &Path) -> Result<Texture, String> {
-        let img = image::open(path)
-            .map_err(|e| format!("cannot read texture {}: {e}", path.display()))?
+    /// Decodes and linearises a material's texture (a file or an image the
+    /// scene file holds).
+    pub fn load(texture: &DiffuseTexture) -> Result<Texture, String> {
+        let img = texture
+            .decode()
+            .map_err(|e| format!("cannot read texture: {e}"))?
             .to_rgb8();
+        if img.width() == 0 || img.height() == 0 {
+            return Err(format!("texture {} has no pixels", texture.describe()));
+        }
         let lut: Vec<f32> = (0..256)
             .map(|v| srgb_to_linear(v as f64 / 255.0) as f32)
             .collect();
@@ -31,19 +37,21 @@ impl Texture {
                 .pixels()
                 .map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]])
                 .collect(),
+            wrap: texture.wrap,
         })
     }
 
-    /// Bilinear, repeat-wrapped sample at `uv` (v up, as in OBJ files).
+    /// Bilinear sample, wrapped per axis (repeat for OBJ textures), at `uv` (v up, as in OBJ files).
     pub fn sample(&self, uv: [f32; 2]) -> [f32; 3] {
         let (w, h) = (self.width as f32, self.height as f32);
         let x = uv[0] * w - 0.5;
         let y = (1.0 - uv[1]) * h - 0.5;
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
-        let wrap = |v: f32, n: usize| (v as i64).rem_euclid(n as i64) as usize;
-        let at =
-            |i: f32, j: f32| self.texels[wrap(j, self.height) * self.width + wrap(i, self.width)];
+        let [ws, wt] = self.wrap;
+        let at = |i: f32, j: f32| {
+            self.texels[wt.texel(j as i64, self.height) * self.width + ws.texel(i as i64, self.width)]
+        };
         let (a, b, c, d) = (
             at(x0, y0),
             at(x0 + 1.0, y0),
@@ -70,8 +78,8 @@ impl Albedo {
                 .iter()
                 .map(|m| {
                     m.diffuse_texture
-                        .as_deref()
-                        .and_then(|p| Texture::load(p).ok())
+                        .as_ref()
+                        .and_then(|t| Texture::load(t).ok())
                 })
                 .collect(),
         }

@@ -131,18 +131,122 @@ pub(super) fn build_scene(
         ));
     }
 
-    // Every vertex tobj returns is used by some face: reject bad coordinates.
+    let raw = Raw {
+        positions,
+        normals,
+        has_normal,
+        texcoords,
+        has_texcoord,
+        triangles,
+        tri_material,
+        repairs: Repairs {
+            degenerate_triangles: st.short_faces,
+            nonconvex_polygons: nonconvex,
+            untriangulated_polygons: untriangulated,
+            ..Repairs::default()
+        },
+    };
+    let empty_detail = if st.faces == 0 {
+        "the file has no faces".to_owned()
+    } else {
+        format!(
+            "no face has 3 or more vertices ({} point/line faces ignored)",
+            st.short_faces
+        )
+    };
+    let all = std::mem::take(&mut st.materials);
+    let missing_names = std::mem::take(&mut st.missing_names);
+    let known = all.len();
+    finish(
+        path,
+        raw,
+        st.warnings,
+        Finish {
+            empty_detail,
+            missing_names,
+            known_materials: known,
+            bad_vertex: |vertex, p| {
+                locate_bad_vertex(path).unwrap_or_else(|| SceneError::Invalid {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "a vertex has an invalid coordinate {p:?} (merged vertex {vertex}; its \
+                         line could not be located)"
+                    ),
+                })
+            },
+            resolve: |used: &[usize], warnings: &mut Vec<String>| {
+                resolve_materials(&all, used, warnings)
+            },
+        },
+    )
+}
+
+/// A scene's geometry as a loader read it, before validation: vertices
+/// with per-vertex flags saying which carry a normal or texture coordinate
+/// from the file, triangles with a material index into the loader's own
+/// list (`None`: the default material), and the repairs made so far.
+pub(super) struct Raw {
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Vec<[f32; 3]>,
+    pub has_normal: Vec<bool>,
+    pub texcoords: Vec<[f32; 2]>,
+    pub has_texcoord: Vec<bool>,
+    pub triangles: Vec<[u32; 3]>,
+    pub tri_material: Vec<Option<usize>>,
+    pub repairs: Repairs,
+}
+
+/// What [`finish`] needs from the format: why a scene without triangles
+/// is empty, the material names that were used but not defined (with the
+/// first line), how many materials the loader knows, the error for a bad
+/// vertex, and the materials for the used indices (with the count of
+/// textures that failed).
+pub(super) struct Finish<B, R> {
+    pub empty_detail: String,
+    pub missing_names: std::collections::BTreeMap<String, usize>,
+    pub known_materials: usize,
+    pub bad_vertex: B,
+    pub resolve: R,
+}
+
+/// Validates and repairs a loader's geometry into a [`Scene`]: bad
+/// coordinates rejected, non-finite attributes dropped, degenerate
+/// triangles skipped, winding compared with the normals, unused vertices
+/// dropped, missing normals filled, materials resolved (those used, in the
+/// loader's order, then the default) and albedo clamped; every repair
+/// counted and said.
+pub(super) fn finish<B, R>(
+    path: &Path,
+    raw: Raw,
+    mut warnings: Vec<String>,
+    how: Finish<B, R>,
+) -> Result<Scene, SceneError>
+where
+    B: FnOnce(usize, [f32; 3]) -> SceneError,
+    R: FnOnce(&[usize], &mut Vec<String>) -> Result<(Vec<Material>, u64), SceneError>,
+{
+    let invalid = |message: String| SceneError::Invalid {
+        path: path.to_path_buf(),
+        message,
+    };
+    let Raw {
+        positions,
+        normals,
+        mut has_normal,
+        texcoords,
+        mut has_texcoord,
+        triangles,
+        tri_material,
+        mut repairs,
+    } = raw;
+    // Every vertex a loader returns is used by some face: reject bad
+    // coordinates.
     if let Some((vertex, p)) = positions
         .iter()
         .enumerate()
         .find(|(_, p)| p.iter().any(|&c| coordinate_problem(c).is_some()))
     {
-        return Err(locate_bad_vertex(path).unwrap_or_else(|| {
-            invalid(format!(
-                "a vertex has an invalid coordinate {p:?} (merged vertex {vertex}; its line \
-                 could not be located)"
-            ))
-        }));
+        return Err((how.bad_vertex)(vertex, *p));
     }
 
     // Non-finite normals or texcoords from the file count as absent.
@@ -160,35 +264,22 @@ pub(super) fn build_scene(
         }
     }
     if bad_attributes > 0 {
-        st.warnings.push(format!(
+        warnings.push(format!(
             "{bad_attributes} non-finite normal(s) or texture coordinate(s) were replaced"
         ));
     }
 
     if triangles.is_empty() {
-        let detail = if st.faces == 0 {
-            "the file has no faces".to_owned()
-        } else {
-            format!(
-                "no face has 3 or more vertices ({} point/line faces ignored)",
-                st.short_faces
-            )
-        };
         return Err(SceneError::Empty {
             path: path.to_path_buf(),
-            detail,
+            detail: how.empty_detail,
         });
     }
 
     // Skip degenerate triangles, check winding against the file's normals.
-    let mut repairs = Repairs {
-        degenerate_triangles: st.short_faces,
-        nonconvex_polygons: nonconvex,
-        untriangulated_polygons: untriangulated,
-        ..Repairs::default()
-    };
+    let untriangulated = repairs.untriangulated_polygons;
     if untriangulated > 0 {
-        st.warnings.push(format!(
+        warnings.push(format!(
             "{} non-convex polygon face(s) could not be cut into triangles (an outline that \
              crosses itself, or more than {} vertices) and were fanned from their first \
              vertex, which may cover the wrong area: triangulate them in the modelling tool",
@@ -228,7 +319,7 @@ pub(super) fn build_scene(
         });
     }
     if repairs.winding_disagrees_with_normals > 0 {
-        st.warnings.push(format!(
+        warnings.push(format!(
             "{} triangle(s) are wound against their vertex normals (kept as they are)",
             repairs.winding_disagrees_with_normals
         ));
@@ -257,7 +348,7 @@ pub(super) fn build_scene(
         let given: Vec<[f32; 3]> = used.iter().map(|&v| normals[v as usize]).collect();
         let missing = flags.iter().filter(|&&f| !f).count();
         if missing > 0 {
-            st.warnings.push(format!(
+            warnings.push(format!(
                 "{missing} of {} vertices have no usable normal in the file; filled with the \
                  area-weighted mean of their triangles' normals",
                 used.len()
@@ -270,7 +361,7 @@ pub(super) fn build_scene(
     let out_texcoords = if any_texcoord {
         let missing = used.iter().filter(|&&v| !has_texcoord[v as usize]).count();
         if missing > 0 {
-            st.warnings.push(format!(
+            warnings.push(format!(
                 "{missing} of {} vertices have no usable texture coordinate in the file; set to [0, 0]",
                 used.len()
             ));
@@ -292,14 +383,13 @@ pub(super) fn build_scene(
     let mut used_ids: Vec<usize> = kept.iter().filter_map(|(_, m)| *m).collect();
     used_ids.sort_unstable();
     used_ids.dedup();
-    if let Some(&bad) = used_ids.iter().find(|&&id| id >= st.materials.len()) {
+    if let Some(&bad) = used_ids.iter().find(|&&id| id >= how.known_materials) {
         return Err(invalid(format!(
-            "tobj returned an unknown material id {bad}"
+            "the loader returned an unknown material id {bad}"
         )));
     }
     let needs_default = kept.iter().any(|(_, m)| m.is_none());
-    let (mut materials, texture_failures) =
-        resolve_materials(&st.materials, &used_ids, &mut st.warnings)?;
+    let (mut materials, texture_failures) = (how.resolve)(&used_ids, &mut warnings)?;
     repairs.missing_textures = texture_failures;
     if needs_default {
         materials.push(Material {
@@ -308,10 +398,11 @@ pub(super) fn build_scene(
             emission: [0.0; 3],
             kd: [DEFAULT_ALBEDO; 3],
             diffuse_texture: None,
+            double_sided: false,
         });
     }
     let default_index = (materials.len() - 1) as u32;
-    let mut material_index = vec![u32::MAX; st.materials.len()];
+    let mut material_index = vec![u32::MAX; how.known_materials];
     for (k, &id) in used_ids.iter().enumerate() {
         material_index[id] = k as u32;
     }
@@ -329,31 +420,31 @@ pub(super) fn build_scene(
         }
     }
     if repairs.clamped_albedo_components > 0 {
-        st.warnings.push(format!(
+        warnings.push(format!(
             "{} albedo component(s) above {ALBEDO_MAX} were clamped to it",
             repairs.clamped_albedo_components
         ));
     }
 
-    repairs.missing_materials = st.missing_names.len() as u64;
-    if !st.missing_names.is_empty() {
-        let mut names: Vec<String> = st
+    repairs.missing_materials = how.missing_names.len() as u64;
+    if !how.missing_names.is_empty() {
+        let mut names: Vec<String> = how
             .missing_names
             .iter()
             .take(5)
             .map(|(name, line)| format!("`{name}` (line {line})"))
             .collect();
-        if st.missing_names.len() > 5 {
-            names.push(format!("and {} more", st.missing_names.len() - 5));
+        if how.missing_names.len() > 5 {
+            names.push(format!("and {} more", how.missing_names.len() - 5));
         }
-        st.warnings.push(format!(
+        warnings.push(format!(
             "{} material(s) used but not defined, given the default albedo {DEFAULT_ALBEDO}: {}",
-            st.missing_names.len(),
+            how.missing_names.len(),
             names.join(", ")
         ));
     }
     if repairs.degenerate_triangles > 0 {
-        st.warnings.push(format!(
+        warnings.push(format!(
             "{} degenerate triangle(s) skipped",
             repairs.degenerate_triangles
         ));
@@ -368,8 +459,9 @@ pub(super) fn build_scene(
         triangle_material,
         materials,
         repairs,
-        warnings: st.warnings,
+        warnings: warnings,
         twins: Vec::new(),
+        authored: super::Authored::default(),
     })
 }
 

@@ -1,4 +1,5 @@
-//! The files a scene is made of: its OBJ, the MTL libraries the OBJ names
+//! The files a scene is made of: a glTF file and the buffers and images it
+//! names ([`gltf_side_files`]), or an OBJ, the MTL libraries the OBJ names
 //! (`mtllib`, resolved beside the OBJ as the loader resolves them) and the
 //! image files those name (`map_Kd`, which the loader reads, and every
 //! other map an MTL may name: the files a user keeps with the model). The
@@ -36,6 +37,15 @@ fn is_map_keyword(k: &str) -> bool {
 /// unnoticed that the loader reads); an OBJ that cannot be read is the
 /// error.
 pub fn source_files(obj: &Path) -> io::Result<Vec<PathBuf>> {
+    if super::gltf::is_gltf(obj) {
+        let mut files = vec![obj.to_path_buf()];
+        for f in gltf_side_files(obj)? {
+            if f.is_file() {
+                push_new(&mut files, f);
+            }
+        }
+        return Ok(files);
+    }
     let mut files = vec![obj.to_path_buf()];
     let dir = obj.parent().unwrap_or_else(|| Path::new(""));
     let mut libraries = Vec::new();
@@ -82,6 +92,40 @@ pub fn source_files(obj: &Path) -> io::Result<Vec<PathBuf>> {
         }
     }
     Ok(files)
+}
+
+/// The files a glTF file names (its buffers' and images' URIs that are not
+/// data URIs, resolved beside it), in the file's order, whether or not they
+/// exist. Reads only the JSON (a `.glb`'s first chunk); a file whose JSON
+/// cannot be read names none (loading it reports why), one that cannot be
+/// opened is the error.
+pub fn gltf_side_files(path: &Path) -> io::Result<Vec<PathBuf>> {
+    use std::io::Read;
+    let mut f = File::open(path)?;
+    let mut head = [0u8; 20];
+    let n = f.read(&mut head)?;
+    let json: Vec<u8> = if n >= 20 && &head[0..4] == b"glTF" {
+        // GLB: header (magic, version, length), then the JSON chunk
+        // (length, type "JSON", data).
+        let len = u32::from_le_bytes([head[12], head[13], head[14], head[15]]) as u64;
+        let size = f.metadata()?.len();
+        if &head[16..20] != b"JSON" || len > size {
+            return Ok(Vec::new());
+        }
+        let mut buf = vec![0u8; len as usize];
+        if f.read_exact(&mut buf).is_err() {
+            return Ok(Vec::new());
+        }
+        buf
+    } else {
+        let mut buf = head[..n].to_vec();
+        f.read_to_end(&mut buf)?;
+        buf
+    };
+    let Ok(value) = serde_json::from_slice::<serde_json::Value>(&json) else {
+        return Ok(Vec::new());
+    };
+    Ok(super::gltf::named_files(path, &value))
 }
 
 fn push_new(files: &mut Vec<PathBuf>, p: PathBuf) {

@@ -27,7 +27,9 @@ pub(super) fn resolve_materials(
     let decoded: HashMap<PathBuf, Result<[f64; 3], String>> = unique
         .into_par_iter()
         .map(|p| {
-            let mean = texture_mean_linear(&p);
+            let mean = ImageSource::File(p.clone())
+                .decode()
+                .and_then(|image| texture_mean_linear(&image));
             (p, mean)
         })
         .collect();
@@ -94,7 +96,10 @@ pub(super) fn resolve_materials(
             albedo,
             emission,
             kd,
-            diffuse_texture: texture.filter(|_| mean.is_some()),
+            diffuse_texture: texture
+                .filter(|_| mean.is_some())
+                .map(DiffuseTexture::file),
+            double_sided: false,
         });
     }
     Ok((materials, failures.len() as u64))
@@ -113,22 +118,16 @@ pub(super) fn texture_file_name(spec: &str) -> String {
     name.replace('\\', "/")
 }
 
-/// Decodes a texture and returns the mean of its RGB in linear space: each
-/// sample is converted from sRGB with the exact EOTF, then averaged. Alpha
-/// is ignored; grey images count as equal R, G and B.
-pub(super) fn texture_mean_linear(path: &Path) -> Result<[f64; 3], String> {
-    let image = image::ImageReader::open(path)
-        .map_err(|e| e.to_string())?
-        .with_guessed_format()
-        .map_err(|e| e.to_string())?
-        .decode()
-        .map_err(|e| e.to_string())?;
+/// The mean of a decoded texture's RGB in linear space: each sample is
+/// converted from sRGB with the exact EOTF, then averaged. Alpha is
+/// ignored; grey images count as equal R, G and B.
+pub(super) fn texture_mean_linear(image: &image::DynamicImage) -> Result<[f64; 3], String> {
     let pixels = u64::from(image.width()) * u64::from(image.height());
     if pixels == 0 {
         return Err("the image has no pixels".to_owned());
     }
     use image::DynamicImage as D;
-    let mean = match &image {
+    let mean = match image {
         D::ImageRgb8(b) => mean_u8(b.as_raw(), 3, 3),
         D::ImageRgba8(b) => mean_u8(b.as_raw(), 4, 3),
         D::ImageLuma8(b) => mean_u8(b.as_raw(), 1, 1),

@@ -1,6 +1,7 @@
-//! Scene loading: OBJ + MTL through `tobj`, triangulated, validated and
-//! repaired with every repair counted (DESIGN.md section 4: nothing is
-//! silently clamped or dropped).
+//! Scene loading: OBJ + MTL through `tobj` (here) and glTF 2.0 through the
+//! `gltf` crate ([`gltf`]), triangulated, validated and repaired with every
+//! repair counted (DESIGN.md section 4: nothing is silently clamped or
+//! dropped). Both formats end in one [`Scene`] and one set of checks.
 //!
 //! [`load`] reads the OBJ with `tobj` (triangulated, single index, points
 //! and lines ignored), merges every model into one vertex array and gives
@@ -36,6 +37,9 @@ use crate::core::math::{cross, norm, sub};
 
 mod build;
 pub mod files;
+pub mod gltf;
+pub mod image_source;
+pub use image_source::{DiffuseTexture, ImageSource, Wrap};
 mod material;
 mod tap;
 use build::build_scene;
@@ -83,8 +87,13 @@ pub struct Material {
     /// 1 for a textured material (the texture alone) and [`DEFAULT_ALBEDO`]
     /// otherwise.
     pub kd: [f32; 3],
-    /// The diffuse texture, resolved relative to the MTL file, if it loaded.
-    pub diffuse_texture: Option<PathBuf>,
+    /// The diffuse texture (an OBJ's `map_Kd`, resolved relative to the MTL
+    /// file; a glTF material's `baseColorTexture`), if it loaded.
+    pub diffuse_texture: Option<DiffuseTexture>,
+    /// Both sides of the surface are seen (a glTF material's
+    /// `doubleSided`): the bake gives its triangles back sides
+    /// ([`Scene::with_back_sides_of`]). OBJ materials are one-sided.
+    pub double_sided: bool,
 }
 
 /// Repairs made while loading, each counted.
@@ -149,6 +158,20 @@ pub struct Scene {
     /// the reversed copies of the triangles listed here, in this
     /// (ascending) order. Empty for a scene as loaded.
     pub twins: Vec<u32>,
+    /// The camera and lights the scene file gives (glTF); empty for OBJ.
+    pub authored: Authored,
+}
+
+/// A camera and lights that come with the scene file: a glTF file's first
+/// camera and its `KHR_lights_punctual` lights, converted as
+/// [`gltf`] documents. A camera-and-lights file still overrides them;
+/// where neither is given, [`crate::core::default_view`] chooses.
+#[derive(Clone, Debug, Default)]
+pub struct Authored {
+    /// The camera of the first camera node met (scene order), if any.
+    pub camera: Option<crate::core::scene_config::Camera>,
+    /// Every light node's light, in scene order.
+    pub lights: Vec<crate::core::scene_config::Light>,
 }
 
 /// Axis-aligned bounds as they appear in the JSON summary.
@@ -454,8 +477,9 @@ fn load_options() -> tobj::LoadOptions {
     }
 }
 
-/// Loads an OBJ scene with its MTL files and textures, validates it and
-/// repairs what can be repaired (see the module documentation).
+/// Loads a scene, validates it and repairs what can be repaired: a glTF
+/// file (`.gltf`, `.glb`: [`gltf::load`]) or an OBJ with its MTL files and
+/// textures (any other name; see the module documentation).
 ///
 /// Errors: [`SceneError::Io`] when the OBJ cannot be read;
 /// [`SceneError::Parse`] naming the file (OBJ or MTL) and the 1-based line
@@ -489,6 +513,14 @@ fn load_options() -> tobj::LoadOptions {
 /// - Non-UTF-8 lines make tobj fail with a bare "read error"; the line tap
 ///   decodes them lossily instead and warns.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    if gltf::is_gltf(path) {
+        return gltf::load(path);
+    }
+    load_obj(path)
+}
+
+/// [`load`] for an OBJ file.
+fn load_obj(path: &Path) -> Result<Scene, SceneError> {
     let file = File::open(path).map_err(|source| SceneError::Io {
         path: path.to_path_buf(),
         source,
