@@ -147,7 +147,7 @@ fn default_camera_lights(
             &loaded
         }
     };
-    let (config, _) = radiosity::core::default_view::default_config(scene);
+    let config = radiosity::core::default_view::config_for(scene);
     eprintln!(
         "no camera-and-lights file {} (give one with --camera-lights): {}",
         beside.display(),

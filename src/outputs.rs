@@ -82,6 +82,9 @@ impl Inputs {
                         _ if f.extension().is_some_and(|e| e.eq_ignore_ascii_case("mtl")) => {
                             format!("a material library of {}", obj.display())
                         }
+                        _ if f.extension().is_some_and(|e| e.eq_ignore_ascii_case("bin")) => {
+                            format!("a buffer of {}", obj.display())
+                        }
                         _ => format!("a texture of {}", obj.display()),
                     };
                     self.file(f, &what);

@@ -479,15 +479,40 @@ pub fn transfer_stages(
     // Faces seen from both sides (wound the wrong way, or single-sided in
     // open space) given a back side (module `winding`); two-sided bakes
     // have back sides everywhere.
+    // Double-sided materials (glTF's `doubleSided`) have back sides
+    // whatever the check finds, as wound or not.
+    let double_sided: Vec<u32> = (0..loaded.triangles.len() as u32)
+        .filter(|&t| loaded.materials[loaded.triangle_material[t as usize] as usize].double_sided)
+        .collect();
     let (scene, winding) = if config.two_sided {
         (loaded.with_back_sides(), winding::Winding::default())
     } else if config.as_wound {
-        (loaded, winding::Winding::default())
+        let w = winding::Winding {
+            double_sided: double_sided.len(),
+            twinned: double_sided,
+            ..winding::Winding::default()
+        };
+        (loaded.with_back_sides_of(&w.twinned), w)
     } else {
         progress("checking each face's winding");
-        let w = winding::check(&loaded);
+        let mut w = winding::check(&loaded);
         if !w.is_empty() {
             progress(&w.to_string());
+        }
+        if !double_sided.is_empty() {
+            // The probes' list leaves out what double-sided adds: its
+            // area and materials stay the probes' findings.
+            let mut probed = std::mem::take(&mut w.twinned);
+            probed.retain(|t| double_sided.binary_search(t).is_err());
+            w.twinned_area = probed.iter().map(|&t| loaded.triangle_area(t as usize)).sum();
+            w.twinned = probed;
+            w.double_sided = double_sided.len();
+            w.twinned.extend(&double_sided);
+            w.twinned.sort_unstable();
+            progress(&format!(
+                "{} triangles of double-sided materials get a back side",
+                double_sided.len()
+            ));
         }
         stages.push(StageTime {
             stage: "winding",

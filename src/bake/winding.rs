@@ -84,6 +84,10 @@ pub struct Winding {
     /// (at most five), with that area.
     pub materials: Vec<(String, f64)>,
     pub seconds: f64,
+    /// Of `twinned`, the triangles of double-sided materials (glTF's
+    /// `doubleSided`), which get a back side whatever the probes find;
+    /// `twinned_area` and `materials` count only the others.
+    pub double_sided: usize,
 }
 
 impl Winding {
@@ -99,9 +103,16 @@ impl std::fmt::Display for Winding {
         write!(
             f,
             "winding: {} faces seen from behind ({:.2} % of the area) get a back side",
-            self.twinned.len(),
+            self.twinned.len() - self.double_sided,
             share(self.twinned_area)
         )?;
+        if self.double_sided > 0 {
+            write!(
+                f,
+                ", and {} faces of double-sided materials",
+                self.double_sided
+            )?;
+        }
         if !self.materials.is_empty() {
             let names: Vec<String> = self
                 .materials

@@ -123,6 +123,45 @@ fn sphere(k: usize) -> Vec<[f64; 3]> {
         .collect()
 }
 
+/// The camera and lights a scene without a camera-and-lights file is shown
+/// with: those its file gives ([`Scene::authored`], a glTF file's camera
+/// and lights) and, for what it does not give, the default
+/// ([`default_config`]). The description says which is which.
+pub fn config_for(scene: &Scene) -> SceneConfig {
+    let a = &scene.authored;
+    if a.camera.is_some() && !a.lights.is_empty() {
+        let name = scene
+            .source
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        return SceneConfig {
+            camera: a.camera.clone().expect("checked"),
+            lights: a.lights.clone(),
+            units: "metres".to_string(),
+            description: format!(
+                "the camera and {} light(s) of {name}",
+                a.lights.len()
+            ),
+            emission: Default::default(),
+        };
+    }
+    let (mut config, _) = default_config(scene);
+    if let Some(c) = &a.camera {
+        config.camera = c.clone();
+        config.description = format!("{}; the camera from the file", config.description);
+    }
+    if !a.lights.is_empty() {
+        config.lights = a.lights.clone();
+        config.description = format!(
+            "{}; the {} light(s) from the file",
+            config.description,
+            a.lights.len()
+        );
+    }
+    config
+}
+
 /// A camera and lights for `scene` (module doc), with where the eye went.
 /// The configuration's description says what was chosen; it validates.
 pub fn default_config(scene: &Scene) -> (SceneConfig, Placement) {

@@ -211,6 +211,12 @@ pub struct SceneSummary {
     pub repairs: Repairs,
     /// The loader's warnings.
     pub warnings: Vec<String>,
+    /// The length unit: "metres" for glTF (fixed by its spec), "scene units"
+    /// for OBJ (which has none).
+    pub units: String,
+    /// Lights and whether a camera come with the file (glTF).
+    pub authored_lights: usize,
+    pub authored_camera: bool,
 }
 
 impl Scene {
@@ -389,6 +395,14 @@ impl Scene {
             emissive_area: self.emissive_area(),
             repairs: self.repairs.clone(),
             warnings: self.warnings.clone(),
+            units: if gltf::is_gltf(&self.source) {
+                "metres"
+            } else {
+                "scene units"
+            }
+            .to_owned(),
+            authored_lights: self.authored.lights.len(),
+            authored_camera: self.authored.camera.is_some(),
         }
     }
 }
@@ -419,8 +433,17 @@ impl fmt::Display for SceneSummary {
         )?;
         writeln!(
             f,
-            "bounds      [{x0:.4}, {y0:.4}, {z0:.4}] .. [{x1:.4}, {y1:.4}, {z1:.4}]"
+            "bounds      [{x0:.4}, {y0:.4}, {z0:.4}] .. [{x1:.4}, {y1:.4}, {z1:.4}] ({})",
+            self.units
         )?;
+        if self.authored_camera || self.authored_lights > 0 {
+            writeln!(
+                f,
+                "view        {} camera, {} light(s) from the file",
+                if self.authored_camera { "a" } else { "no" },
+                self.authored_lights
+            )?;
+        }
         writeln!(f, "area        {:.6}", self.area)?;
         writeln!(f, "emissive    {:.6}", self.emissive_area)?;
         writeln!(

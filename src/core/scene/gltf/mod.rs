@@ -127,7 +127,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         path: path.to_path_buf(),
         source,
     })?;
-    let file = gltf::Gltf::from_slice(&bytes).map_err(|e| parse_error(path, e))?;
+    let file = parse(&bytes).map_err(|e| parse_error(path, e))?;
     drop(bytes);
     let doc = &file.document;
     let dir = path.parent().unwrap_or_else(|| Path::new(""));
@@ -224,6 +224,10 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         }
     }
     skipped.say(&mut warnings);
+    if skipped.textured == 0 {
+        // No texture reads coordinates: the scene has none.
+        raw.has_texcoord.fill(false);
+    }
     if doc.animations().len() > 0 {
         warnings.push(format!(
             "{} animation(s) ignored: the scene is static (drawn as the nodes' transforms place it)",
@@ -298,8 +302,66 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let t = DVec3::from(c.target.map(f64::from));
         c.target = (p + (t - p) * d).as_vec3().to_array();
     }
+    // The lights and camera must be ones the run time accepts (a node
+    // scaled to zero leaves a light without a direction).
+    let check = crate::core::scene_config::SceneConfig {
+        camera: authored.camera.clone().unwrap_or(Camera {
+            position: [0.0, 0.0, 1.0],
+            target: [0.0; 3],
+            up: [0.0, 1.0, 0.0],
+            fov_y_deg: 60.0,
+        }),
+        lights: authored.lights.clone(),
+        units: "metres".to_owned(),
+        description: String::new(),
+        emission: Default::default(),
+    };
+    if let Err(e) = check.validate() {
+        return Err(invalid(format!(
+            "the file's {} converts to an invalid one: {e}",
+            if e.field.starts_with("camera") {
+                "first camera"
+            } else {
+                "KHR_lights_punctual lights (in scene order)"
+            }
+        )));
+    }
     scene.authored = authored;
     Ok(scene)
+}
+
+/// Parses and validates a glTF file's bytes. `gltf-json` 1.4.1's check that
+/// a POSITION accessor has `min` and `max` indexes the accessors with the
+/// primitive's POSITION index unchecked (a panic on an index out of range,
+/// found by `tests/gltf.rs`'s mutations), so that index is checked first.
+fn parse(bytes: &[u8]) -> Result<gltf::Gltf, gltf::Error> {
+    let unchecked = gltf::Gltf::from_slice_without_validation(bytes)?;
+    let blob = unchecked.blob;
+    let root = unchecked.document.into_json();
+    let accessors = root.accessors.len();
+    let mut problems = Vec::new();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let position = gltf::json::validation::Checked::Valid(Semantic::Positions);
+            if let Some(a) = prim.attributes.get(&position) {
+                if a.value() >= accessors {
+                    let path = gltf::json::Path::new()
+                        .field("meshes")
+                        .index(m)
+                        .field("primitives")
+                        .index(p)
+                        .field("attributes")
+                        .key("POSITION");
+                    problems.push((path, gltf::json::validation::Error::IndexOutOfBounds));
+                }
+            }
+        }
+    }
+    if !problems.is_empty() {
+        return Err(gltf::Error::Validation(problems));
+    }
+    let document = gltf::Document::from_json(root)?;
+    Ok(gltf::Gltf { document, blob })
 }
 
 /// A glTF parse or validation failure as a scene error.
@@ -418,6 +480,8 @@ struct Skipped {
     orthographic: usize,
     ranges: usize,
     missing_texcoords: usize,
+    /// Primitives whose texture coordinates were read (not a skip).
+    textured: usize,
 }
 
 impl Skipped {
@@ -575,12 +639,16 @@ fn add_primitive(
     };
     match texcoords {
         Some(v) => {
+            skipped.textured += 1;
             raw.texcoords.extend(v);
             raw.has_texcoord.resize(base + n, true);
         }
         None => {
             raw.texcoords.resize(base + n, [0.0; 2]);
-            raw.has_texcoord.resize(base + n, false);
+            // Without a texture nothing reads the coordinates: none are
+            // missing (the scene has texture coordinates when any
+            // primitive's texture needs them).
+            raw.has_texcoord.resize(base + n, info.is_none());
         }
     }
     let indices: Vec<u32> = match prim.indices() {
