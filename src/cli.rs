@@ -36,7 +36,8 @@ pub(crate) enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Describe a scene (.obj: triangles, materials, bounds, areas, repairs)
+    /// Describe a scene (.obj, .gltf, .glb: triangles, materials, bounds,
+    /// areas, repairs, the file's camera and lights)
     /// or a bake file (.rad: patches, bounces, codec, bytes per entry).
     Info {
         /// The scene or bake file (told apart by the bake file's magic).
@@ -76,7 +77,7 @@ pub(crate) enum Command {
     /// Mitsuba 3 scene (scene.xml, lights_only.xml, meshes, linear textures)
     /// for independent reference images (scripts/mitsuba-reference).
     ExportMitsuba {
-        /// The scene (.obj).
+        /// The scene (.obj, .gltf or .glb).
         scene: PathBuf,
         /// Output directory.
         #[arg(short, long)]
@@ -287,7 +288,7 @@ pub(crate) enum BenchCommand {
     /// T_inf of a real scene by the LU solve and by doubling, against the
     /// f64 solve (one channel, R), after the bake's first stages.
     Solve {
-        /// The scene (OBJ).
+        /// The scene (OBJ or glTF).
         scene: PathBuf,
         /// Comma-separated patch targets.
         #[arg(long, value_delimiter = ',', default_value = "4000")]
@@ -317,7 +318,7 @@ pub(crate) enum BenchCommand {
     /// on each scene's T_∞, errors of T̃ and of H = T̃·B0 over seeded
     /// random lights, bytes per entry and times, as Markdown.
     Compression {
-        /// The scene files (.obj).
+        /// The scene files (.obj, .gltf, .glb).
         #[arg(required = true)]
         scenes: Vec<PathBuf>,
         /// Target patch counts: one for every scene, or one per scene
@@ -350,7 +351,7 @@ pub(crate) enum BenchCommand {
 
 #[derive(Args)]
 pub(crate) struct RenderArgs {
-    /// A bake file (.rad), or a scene (.obj) to bake first (or reuse from
+    /// A bake file (.rad), or a scene (.obj, .gltf, .glb) to bake first (or reuse from
     /// the bake cache: $RADIOSITY_CACHE_DIR, else ~/.cache/radiosity).
     pub(crate) input: PathBuf,
     /// The PNG to write.
@@ -365,7 +366,7 @@ pub(crate) struct RenderArgs {
     pub(crate) camera_lights: Option<PathBuf>,
     /// The scene the bake was made from, for geometry and textures (default:
     /// the one the bake file names, relative to the bake file).
-    #[arg(long, value_name = "SCENE.obj")]
+    #[arg(long, value_name = "SCENE")]
     pub(crate) scene: Option<PathBuf>,
     #[arg(long, default_value_t = 640)]
     pub(crate) width: usize,
@@ -413,7 +414,7 @@ pub(crate) struct RenderArgs {
 
 #[derive(Args)]
 pub(crate) struct ViewArgs {
-    /// A bake file (.rad), or a scene (.obj) to bake first (or reuse from
+    /// A bake file (.rad), or a scene (.obj, .gltf, .glb) to bake first (or reuse from
     /// the bake cache).
     pub(crate) input: PathBuf,
     /// The camera and lights (default: the scene's NAME.json beside it).
@@ -425,7 +426,7 @@ pub(crate) struct ViewArgs {
     pub(crate) save_to: Option<PathBuf>,
     /// The scene the bake was made from (default: the one the bake file
     /// names).
-    #[arg(long, value_name = "SCENE.obj")]
+    #[arg(long, value_name = "SCENE")]
     pub(crate) scene: Option<PathBuf>,
     #[arg(long, default_value_t = 1280)]
     pub(crate) width: u32,
@@ -491,7 +492,8 @@ pub(crate) struct DeviceArgs {
 
 #[derive(Args)]
 pub(crate) struct BakeArgs {
-    /// The scene (.obj with its .mtl).
+    /// The scene: .obj with its .mtl, or glTF 2.0 (.gltf, .glb; metres,
+    /// +y up; its doubleSided materials are baked two-sided).
     pub(crate) scene: PathBuf,
     /// Write the bake file (.rad) here (atomically: a temporary file, then
     /// a rename). Without it the bake runs and reports but writes nothing.

@@ -590,6 +590,97 @@ fn double_sided_materials_are_baked_with_back_sides() {
     assert!(sides.iter().any(|&z| z > 0.0) && sides.iter().any(|&z| z < 0.0), "{sides:?}");
 }
 
+/// Reads a PFM's pixels (as `radiosity render --hdr` writes them).
+fn read_pfm(path: &Path) -> Vec<f32> {
+    let bytes = std::fs::read(path).unwrap();
+    let mut lines = 0;
+    let mut at = 0;
+    while lines < 3 {
+        if bytes[at] == b'\n' {
+            lines += 1;
+        }
+        at += 1;
+    }
+    bytes[at..]
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
+}
+
+fn rel_rms(a: &[f32], b: &[f32]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    let (mut d, mut r) = (0.0f64, 0.0f64);
+    for (x, y) in a.iter().zip(b) {
+        d += f64::from(x - y).powi(2);
+        r += f64::from(*y).powi(2);
+    }
+    assert!(r > 0.0, "a black image");
+    (d / r).sqrt()
+}
+
+#[test]
+fn a_textured_room_renders_the_same_from_obj_gltf_and_glb_on_cpu_and_gl() {
+    let dir = temp_dir("gltf-render");
+    // A 4 × 4 texture of distinct colours, in a file whose name has a
+    // space (a percent-escaped URI in the .gltf).
+    std::fs::create_dir_all(dir.join("tex")).unwrap();
+    let img = image::RgbImage::from_fn(4, 4, |x, y| image::Rgb([(60 * x + 20) as u8, (60 * y + 20) as u8, 200]));
+    img.save(dir.join("tex/floor tiles.png")).unwrap();
+    // The room [0, 2]³ seen from inside; the floor's texture repeats twice.
+    let mut obj = String::from("mtllib room.mtl\n");
+    obj += "v 0 0 0\nv 2 0 0\nv 2 0 2\nv 0 0 2\nv 0 2 0\nv 2 2 0\nv 2 2 2\nv 0 2 2\n";
+    obj += "vt 0 0\nvt 2 0\nvt 2 2\nvt 0 2\n";
+    obj += "usemtl floor\nf 1/1 4/4 3/3 2/2\n";
+    obj += "usemtl wall\nf 5 6 7 8\nf 1 2 6 5\nf 3 4 8 7\nf 1 5 8 4\nf 2 3 7 6\n";
+    std::fs::write(dir.join("room.obj"), obj).unwrap();
+    std::fs::write(
+        dir.join("room.mtl"),
+        "newmtl floor\nKd 0.9 0.9 0.9\nmap_Kd tex/floor tiles.png\nnewmtl wall\nKd 0.6 0.5 0.4\n",
+    )
+    .unwrap();
+    let lights = dir.join("view.json");
+    std::fs::write(
+        &lights,
+        r#"{"camera": {"position": [1.0, 1.6, 1.9], "target": [1.0, 0.0, 0.6], "up": [0, 1, 0], "fov_y_deg": 70},
+            "lights": [{"type": "point", "position": [1.2, 1.7, 0.8], "intensity": [2, 2, 2]}], "units": "m"}"#,
+    )
+    .unwrap();
+    let glb = dir.join("room.glb");
+    let gltf = dir.join("room.gltf");
+    convert(&dir.join("room.obj"), &glb);
+    convert(&dir.join("room.obj"), &gltf);
+    let text = std::fs::read_to_string(&gltf).unwrap();
+    assert!(text.contains("tex/floor%20tiles.png"), "the converter escapes the URI");
+    let bin = env!("CARGO_BIN_EXE_radiosity");
+    let render = |scene: &Path, backend: &str| -> Vec<f32> {
+        let hdr = dir.join(format!(
+            "{}-{backend}.pfm",
+            scene.file_name().unwrap().to_string_lossy()
+        ));
+        let out = Command::new(bin)
+            .env("RADIOSITY_CACHE_DIR", dir.join("cache"))
+            .args(["render", scene.to_str().unwrap(), "--patches", "100", "--backend", backend])
+            .args(["--camera-lights", lights.to_str().unwrap(), "--width", "96", "--height", "72"])
+            .args(["-o", dir.join("x.png").to_str().unwrap(), "--hdr", hdr.to_str().unwrap()])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}: {}", scene.display(), String::from_utf8_lossy(&out.stderr));
+        read_pfm(&hdr)
+    };
+    for backend in ["cpu", "gl"] {
+        let reference = render(&dir.join("room.obj"), backend);
+        for scene in [&glb, &gltf] {
+            let e = rel_rms(&render(scene, backend), &reference);
+            eprintln!("{backend} {}: relative RMS {e:.3e} against the OBJ", scene.display());
+            // The same bake and the same texels; the texture coordinates
+            // differ by the rounding of 1 − (1 − v) in f32 (1e-7 of the
+            // texture), which moves a bilinear sample by far less than
+            // 1e-4 of the image.
+            assert!(e < 1e-4, "{backend} {}: relative RMS {e}", scene.display());
+        }
+    }
+}
+
 // ---------------------------------------------------------------------------
 // Lights and camera
 
@@ -793,12 +884,51 @@ fn broken_files_are_errors_that_say_what_is_wrong() {
     assert!(stderr.contains("short.glb") && !stderr.contains("panicked"), "{stderr}");
 }
 
+/// A `.glb` using most of what the loader reads: a node tree with a
+/// mirror, an embedded texture with a sampler and a transform, a metallic
+/// double-sided material, a strip, lights and a camera.
+fn rich_glb() -> Vec<u8> {
+    let mut b = Builder::new();
+    let tex = b.png_texture(&png([[255, 0, 0], [0, 255, 0], [0, 0, 255], [9, 9, 9]]), json!({"wrapS": 33071}));
+    b.push(
+        "materials",
+        json!({"name": "m", "doubleSided": true, "emissiveFactor": [0.1, 0.1, 0.1],
+               "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0], "metallicFactor": 0.5,
+               "baseColorTexture": {"index": tex, "extensions": {"KHR_texture_transform": {"scale": [2.0, 2.0]}}}}}),
+    );
+    let pos = b.floats(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0f32]]);
+    let uv = b.floats(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0f32]]);
+    let quad = unit_quad(&mut b, Some(0));
+    let mesh = b.mesh(vec![quad, json!({"attributes": {"POSITION": pos, "TEXCOORD_0": uv}, "mode": 5, "material": 0})]);
+    b.json["extensionsUsed"] = json!(["KHR_lights_punctual", "KHR_texture_transform"]);
+    b.json["extensions"] = json!({"KHR_lights_punctual": {"lights": [
+        {"type": "spot", "intensity": 10.0, "spot": {"outerConeAngle": 0.5}}, {"type": "point", "intensity": 5.0}]}});
+    b.push("cameras", json!({"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}));
+    b.push("nodes", json!({"translation": [0.0, 1.0, 0.0], "children": [1, 2]}));
+    b.push("nodes", json!({"mesh": mesh, "scale": [-1.0, 1.0, 1.0]}));
+    b.push("nodes", json!({"camera": 0, "translation": [0.0, 0.0, 3.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}));
+    b.push("nodes", json!({"translation": [0.0, 2.0, 0.0], "extensions": {"KHR_lights_punctual": {"light": 1}}}));
+    b.push("scenes", json!({"nodes": [0, 3]}));
+    b.glb_bytes()
+}
+
 #[test]
 fn mutated_files_never_panic() {
-    // Deterministic mutations of a valid .glb (a byte set, a cut), as the
-    // bake file's corruption tests do: every one loads or is an error.
+    // Deterministic mutations (bytes set, cuts) of two valid .glb files,
+    // as the bake file's corruption tests do: every one loads or is an
+    // error. GLTF_FUZZ_CASES runs more (30,000 ran clean, 2026-12-04).
     let dir = temp_dir("gltf-fuzz");
-    let glb = valid_glb();
+    let cases: usize = std::env::var("GLTF_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(400);
+    let rich = rich_glb();
+    assert!(scene::load(&{
+        let p = dir.join("rich.glb");
+        std::fs::write(&p, &rich).unwrap();
+        p
+    })
+    .is_ok());
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
     let mut next = || {
         state ^= state << 13;
@@ -807,19 +937,25 @@ fn mutated_files_never_panic() {
         state
     };
     let p = dir.join("m.glb");
-    for case in 0..400 {
-        let mut bytes = glb.clone();
-        for _ in 0..1 + case % 4 {
-            let at = (next() % bytes.len() as u64) as usize;
-            bytes[at] = (next() & 0xff) as u8;
-        }
-        if case % 5 == 0 {
-            bytes.truncate((next() % bytes.len() as u64) as usize);
-        }
-        std::fs::write(&p, &bytes).unwrap();
-        match std::panic::catch_unwind(|| scene::load(&p).map(|s| s.triangle_count())) {
-            Ok(Ok(_)) | Ok(Err(_)) => {}
-            Err(_) => panic!("case {case} panicked"),
+    for (k, base) in [valid_glb(), rich].iter().enumerate() {
+        for case in 0..cases {
+            let mut bytes = base.clone();
+            for _ in 0..1 + case % 4 {
+                let at = (next() % bytes.len() as u64) as usize;
+                bytes[at] = match next() % 3 {
+                    // Digits and JSON punctuation reach deeper than noise.
+                    0 => b"0123456789-.e,]}"[(next() % 16) as usize],
+                    _ => (next() & 0xff) as u8,
+                };
+            }
+            if case % 5 == 0 {
+                bytes.truncate((next() % bytes.len() as u64) as usize);
+            }
+            std::fs::write(&p, &bytes).unwrap();
+            match std::panic::catch_unwind(|| scene::load(&p).map(|s| s.triangle_count())) {
+                Ok(Ok(_)) | Ok(Err(_)) => {}
+                Err(_) => panic!("file {k} case {case} panicked"),
+            }
         }
     }
 }

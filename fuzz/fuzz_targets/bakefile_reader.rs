@@ -52,6 +52,10 @@ fn base() -> &'static [u8] {
                 codec_choice: "fixed".into(),
                 error_lights: 0,
                 error_lights_seed: 1,
+                ff_method: "rays".into(),
+                ff_rays_per_patch: 64,
+                two_sided: false,
+                twinned: Vec::new(),
             })
             .unwrap(),
             scene_hash: SceneHash {
@@ -70,6 +74,7 @@ fn base() -> &'static [u8] {
                 })
                 .collect(),
             permutation: vec![1, 2, 0],
+            near_field: Default::default(),
             // A real encoding (BC1 + log + an RGB9E5 sparse part), so that the
             // codec sections' own validation is reached too.
             codec: {

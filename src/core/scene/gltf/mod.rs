@@ -264,7 +264,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
                     .par_iter()
                     .map(|&m| {
                         let mat = doc.materials().nth(m).expect("a used material index");
-                        resolve_material(&mat, &names[m], dir, &buffers)
+                        resolve_material(doc, &mat, &names[m], dir, &buffers)
                             .map_err(|e| invalid(format!("material `{}`: {e}", names[m])))
                     })
                     .collect::<Result<_, _>>()?;
@@ -738,35 +738,49 @@ fn material_names(doc: &gltf::Document) -> Vec<String> {
         .collect()
 }
 
-/// A texture's image and wrap modes.
-fn texture_of(tex: &gltf::Texture, dir: &Path, buffers: &Buffers) -> Result<DiffuseTexture, String> {
-    let img = tex.source();
-    let i = img.index();
-    let image = match img.source() {
-        gltf::image::Source::View { view, .. } => {
+/// A texture's image and wrap modes. The image's JSON is read directly:
+/// `gltf` 1.4.1's `Image::source` unwraps a `mimeType` the spec requires
+/// with a buffer view but its validation does not check (a panic, found by
+/// `tests/gltf.rs`'s mutations).
+fn texture_of(
+    doc: &gltf::Document,
+    tex: &gltf::Texture,
+    dir: &Path,
+    buffers: &Buffers,
+) -> Result<DiffuseTexture, String> {
+    let i = doc.as_json().textures[tex.index()].source.value();
+    let doc_image = doc
+        .as_json()
+        .images
+        .get(i)
+        .ok_or_else(|| format!("image {i} does not exist"))?;
+    let image = match (&doc_image.buffer_view, &doc_image.uri) {
+        (Some(v), _) => {
+            let v = v.value();
+            let view = doc.views().nth(v).ok_or_else(|| format!("image {i}: bufferView {v} does not exist"))?;
             let b = buffers.0.get(view.buffer().index()).ok_or_else(|| {
-                format!("image {i}: bufferView {} names a missing buffer", view.index())
+                format!("image {i}: bufferView {v} names a missing buffer")
             })?;
             let end = view.offset() as u64 + view.length() as u64;
             if end > b.len() as u64 {
                 return Err(format!(
-                    "image {i}: bufferView {} reaches byte {end} of a buffer of {}",
-                    view.index(),
+                    "image {i}: bufferView {v} reaches byte {end} of a buffer of {}",
                     b.len()
                 ));
             }
             ImageSource::Embedded {
-                label: format!("image {i} (bufferView {})", view.index()),
+                label: format!("image {i} (bufferView {v})"),
                 bytes: Arc::from(&b[view.offset()..end as usize]),
             }
         }
-        gltf::image::Source::Uri { uri, .. } => match data_uri(uri) {
+        (None, Some(uri)) => match data_uri(uri) {
             Some(bytes) => ImageSource::Embedded {
                 label: format!("image {i} (data URI)"),
                 bytes: Arc::from(bytes.map_err(|e| format!("image {i}: {e}"))?),
             },
             None => ImageSource::File(dir.join(percent_decode(uri))),
         },
+        (None, None) => return Err(format!("image {i} has neither a uri nor a bufferView")),
     };
     let s = tex.sampler();
     let wrap = |w: gltf::texture::WrappingMode| match w {
@@ -782,6 +796,7 @@ fn texture_of(tex: &gltf::Texture, dir: &Path, buffers: &Buffers) -> Result<Diff
 
 /// The diffuse material (module doc) with what the model leaves out.
 fn resolve_material(
+    doc: &gltf::Document,
     m: &gltf::Material,
     name: &str,
     dir: &Path,
@@ -798,7 +813,7 @@ fn resolve_material(
     // Metalness: the factor times the texture's mean blue (linear data).
     let mut metallic = f64::from(pbr.metallic_factor());
     if let Some(info) = pbr.metallic_roughness_texture() {
-        let t = texture_of(&info.texture(), dir, buffers)?;
+        let t = texture_of(doc, &info.texture(), dir, buffers)?;
         let img = t.decode().map_err(|e| format!("metallicRoughnessTexture: {e}"))?;
         let rgb = img.to_rgb8();
         let px = rgb.pixels().len().max(1) as f64;
@@ -817,7 +832,7 @@ fn resolve_material(
     let kd = [r, g, b].map(|c| (f64::from(c) * (1.0 - metallic)) as f32);
     let texture = match pbr.base_color_texture() {
         Some(info) => {
-            let t = texture_of(&info.texture(), dir, buffers)?;
+            let t = texture_of(doc, &info.texture(), dir, buffers)?;
             let img = t
                 .decode()
                 .map_err(|e| format!("baseColorTexture: {e}"))?;
@@ -835,7 +850,7 @@ fn resolve_material(
     }
     let mut radiance = m.emissive_factor().map(|c| f64::from(c) * strength);
     if let Some(info) = m.emissive_texture() {
-        let t = texture_of(&info.texture(), dir, buffers)?;
+        let t = texture_of(doc, &info.texture(), dir, buffers)?;
         let img = t.decode().map_err(|e| format!("emissiveTexture: {e}"))?;
         let mean = texture_mean_linear(&img)
             .map_err(|e| format!("emissiveTexture {}: {e}", t.describe()))?;
