@@ -47,7 +47,9 @@
 //! Bake (offline, OpenCL on any device; every kernel has a CPU reference),
 //! [`bake::run`]:
 //! 1. [`core::scene`]: load OBJ + MTL (albedo = `Kd` × linear texture
-//!    average, emission = `Ke`), validate, repair what can be repaired and
+//!    average, emission = `Ke`) or glTF 2.0 ([`core::scene::gltf`]: the
+//!    same diffuse model from the metallic-roughness material, the file's
+//!    camera and lights), validate, repair what can be repaired and
 //!    count it; [`bake::winding`]: faces the scene sees from behind get a
 //!    back side there (recorded in the file, rebuilt by the run time).
 //! 2. [`bake::voxelize`]: voxel patches ([`core::patch`]) — one per occupied
