@@ -52,7 +52,7 @@ impl Builder {
 
     /// A buffer view over `bytes` (4-byte aligned).
     fn view(&mut self, bytes: &[u8]) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let offset = self.bin.len();
@@ -64,13 +64,22 @@ impl Builder {
     }
 
     fn floats<const N: usize>(&mut self, data: &[[f32; N]]) -> usize {
-        let bytes: Vec<u8> = data.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+        let bytes: Vec<u8> = data
+            .iter()
+            .flatten()
+            .flat_map(|f| f.to_le_bytes())
+            .collect();
         let view = self.view(&bytes);
         let kind = ["SCALAR", "VEC2", "VEC3", "VEC4"][N - 1];
-        let mut a = json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": kind});
+        let mut a =
+            json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": kind});
         if N == 3 {
-            let lo: Vec<f32> = (0..N).map(|k| data.iter().map(|p| p[k]).fold(f32::INFINITY, f32::min)).collect();
-            let hi: Vec<f32> = (0..N).map(|k| data.iter().map(|p| p[k]).fold(f32::NEG_INFINITY, f32::max)).collect();
+            let lo: Vec<f32> = (0..N)
+                .map(|k| data.iter().map(|p| p[k]).fold(f32::INFINITY, f32::min))
+                .collect();
+            let hi: Vec<f32> = (0..N)
+                .map(|k| data.iter().map(|p| p[k]).fold(f32::NEG_INFINITY, f32::max))
+                .collect();
             a["min"] = json!(lo);
             a["max"] = json!(hi);
         }
@@ -94,7 +103,10 @@ impl Builder {
     /// An embedded PNG texture image (bufferView); the texture's index.
     fn png_texture(&mut self, png: &[u8], sampler: Value) -> usize {
         let view = self.view(png);
-        let image = self.push("images", json!({"bufferView": view, "mimeType": "image/png"}));
+        let image = self.push(
+            "images",
+            json!({"bufferView": view, "mimeType": "image/png"}),
+        );
         let s = self.push("samplers", sampler);
         self.push("textures", json!({"source": image, "sampler": s}))
     }
@@ -121,11 +133,11 @@ impl Builder {
     /// Writes a `.glb` (JSON chunk, BIN chunk).
     fn glb_bytes(&self) -> Vec<u8> {
         let mut text = self.finish_json(None).to_string().into_bytes();
-        while text.len() % 4 != 0 {
+        while !text.len().is_multiple_of(4) {
             text.push(b' ');
         }
         let mut bin = self.bin.clone();
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let total = 12 + 8 + text.len() + 8 + bin.len();
@@ -146,7 +158,12 @@ impl Builder {
 /// The unit quad `[0, 1]²` in the `z = 0` plane facing `+z`, indexed, as a
 /// primitive (with NORMAL), and optionally `material`.
 fn unit_quad(b: &mut Builder, material: Option<usize>) -> Value {
-    let pos = b.floats(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]);
+    let pos = b.floats(&[
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+    ]);
     let nrm = b.floats(&[[0.0, 0.0, 1.0f32]; 4]);
     let idx = b.indices(&[0, 1, 2, 0, 2, 3]);
     let mut p = json!({"attributes": {"POSITION": pos, "NORMAL": nrm}, "indices": idx});
@@ -188,7 +205,12 @@ fn convert(obj: &Path, out: &Path) {
         .arg(obj)
         .arg(out)
         .status()
-        .unwrap_or_else(|e| panic!("running python3 {} (scripts/setup installs python3): {e}", script.display()));
+        .unwrap_or_else(|e| {
+            panic!(
+                "running python3 {} (scripts/setup installs python3): {e}",
+                script.display()
+            )
+        });
     assert!(status.success(), "obj2gltf.py failed on {}", obj.display());
 }
 
@@ -204,7 +226,10 @@ fn node_transforms_and_a_mirror_place_the_triangles_front_side_out() {
     let h = std::f64::consts::FRAC_1_SQRT_2;
     // 0: translate (10, 0, 0), child 1: turned 90° about +y. 2: mirrored
     // in x. 3: a matrix moving it up 5 (column-major).
-    b.push("nodes", json!({"translation": [10.0, 0.0, 0.0], "children": [1]}));
+    b.push(
+        "nodes",
+        json!({"translation": [10.0, 0.0, 0.0], "children": [1]}),
+    );
     b.push("nodes", json!({"rotation": [0.0, h, 0.0, h], "mesh": mesh}));
     b.push("nodes", json!({"scale": [-1.0, 1.0, 1.0], "mesh": mesh}));
     b.push(
@@ -219,7 +244,12 @@ fn node_transforms_and_a_mirror_place_the_triangles_front_side_out() {
     assert_eq!(s.triangle_count(), 6);
     // Rotation about +y by 90°: (x, y, z) → (z, y, −x); then +10 in x.
     let rot = |p: [f64; 3]| [p[2] + 10.0, p[1], -p[0]];
-    let quad_pts = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+    let quad_pts = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+    ];
     let expect: [Vec<[f64; 3]>; 3] = [
         quad_pts.iter().map(|&p| rot(p)).collect(),
         quad_pts.iter().map(|p| [-p[0], p[1], p[2]]).collect(),
@@ -247,7 +277,11 @@ fn node_transforms_and_a_mirror_place_the_triangles_front_side_out() {
     // The vertex normals went through the inverse transpose: none
     // disagrees with its triangle's winding.
     assert_eq!(s.repairs.winding_disagrees_with_normals, 0);
-    assert!(s.warnings.iter().any(|w| w.contains("no material")), "{:?}", s.warnings);
+    assert!(
+        s.warnings.iter().any(|w| w.contains("no material")),
+        "{:?}",
+        s.warnings
+    );
 }
 
 #[test]
@@ -256,8 +290,18 @@ fn strips_fans_unindexed_primitives_and_ignored_points() {
     let mut b = Builder::new();
     // A strip over the unit square at z = 0, a fan at z = 1 without
     // indices, and a points primitive.
-    let strip_pos = b.floats(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0f32]]);
-    let fan_pos = b.floats(&[[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0f32]]);
+    let strip_pos = b.floats(&[
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [1.0, 1.0, 0.0f32],
+    ]);
+    let fan_pos = b.floats(&[
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 1.0, 1.0],
+        [0.0, 1.0, 1.0f32],
+    ]);
     let mesh = b.mesh(vec![
         json!({"attributes": {"POSITION": strip_pos}, "mode": 5}),
         json!({"attributes": {"POSITION": fan_pos}, "mode": 6}),
@@ -268,13 +312,22 @@ fn strips_fans_unindexed_primitives_and_ignored_points() {
     let path = dir.join("modes.glb");
     std::fs::write(&path, b.glb_bytes()).unwrap();
     let s = scene::load(&path).unwrap();
-    assert_eq!(s.triangle_count(), 4, "two from the strip, two from the fan");
+    assert_eq!(
+        s.triangle_count(),
+        4,
+        "two from the strip, two from the fan"
+    );
     for t in 0..4 {
-        assert!(close3(s.triangle_normal(t), [0.0, 0.0, 1.0], 1e-9), "triangle {t}");
+        assert!(
+            close3(s.triangle_normal(t), [0.0, 0.0, 1.0], 1e-9),
+            "triangle {t}"
+        );
     }
     assert!((s.surface_area() - 2.0).abs() < 1e-9);
     assert!(
-        s.warnings.iter().any(|w| w.contains("1 point or line primitive")),
+        s.warnings
+            .iter()
+            .any(|w| w.contains("1 point or line primitive")),
         "{:?}",
         s.warnings
     );
@@ -295,16 +348,28 @@ fn obj_and_gltf_bake_to_the_same_patches_and_transfer() {
         assert_eq!(a.patches.len(), b.patches.len());
         for (p, q) in a.patches.iter().zip(&b.patches) {
             // The same f32 vertices in the same order: the same patches.
-            assert_eq!((p.centre, p.normal, p.area, p.albedo), (q.centre, q.normal, q.area, q.albedo));
+            assert_eq!(
+                (p.centre, p.normal, p.area, p.albedo),
+                (q.centre, q.normal, q.area, q.albedo)
+            );
             assert_eq!(p.voxel, q.voxel);
             // Ke went through Ke/π and back: f32 rounding, a few ulps.
-            assert!(close3(p.emission, q.emission, 1e-6 * p.emission[0].abs().max(1.0)));
+            assert!(close3(
+                p.emission,
+                q.emission,
+                1e-6 * p.emission[0].abs().max(1.0)
+            ));
         }
         // The same patches and albedos give the same matrix; the solve
         // is deterministic, so only rounding in the emission (not in H's
         // inputs) could differ: none.
         for ch in 0..3 {
-            assert_eq!(a.transfer.channel(ch), b.transfer.channel(ch), "{} channel {ch}", path.display());
+            assert_eq!(
+                a.transfer.channel(ch),
+                b.transfer.channel(ch),
+                "{} channel {ch}",
+                path.display()
+            );
         }
     }
 }
@@ -329,16 +394,30 @@ fn sponza_as_gltf_loads_to_the_objs_geometry_and_materials() {
     for (ma, mb) in a.materials.iter().zip(&b.materials) {
         // The same texture bytes (a file, embedded in the .glb), the same
         // Kd: the same albedo.
-        assert!(close3(ma.albedo.map(f64::from), mb.albedo.map(f64::from), 1e-7), "{}", ma.name);
-        assert_eq!(ma.diffuse_texture.is_some(), mb.diffuse_texture.is_some(), "{}", ma.name);
+        assert!(
+            close3(ma.albedo.map(f64::from), mb.albedo.map(f64::from), 1e-7),
+            "{}",
+            ma.name
+        );
+        assert_eq!(
+            ma.diffuse_texture.is_some(),
+            mb.diffuse_texture.is_some(),
+            "{}",
+            ma.name
+        );
     }
     // Texture coordinates: v flipped twice (1 − (1 − v)), rounding only.
     for t in 0..a.triangle_count() {
         for (va, vb) in a.triangles[t].iter().zip(&b.triangles[t]) {
-            let textured = a.materials[a.triangle_material[t] as usize].diffuse_texture.is_some();
+            let textured = a.materials[a.triangle_material[t] as usize]
+                .diffuse_texture
+                .is_some();
             if textured && !a.texcoords.is_empty() {
                 let (ua, ub) = (a.texcoords[*va as usize], b.texcoords[*vb as usize]);
-                assert!((ua[0] - ub[0]).abs() < 1e-6 && (ua[1] - ub[1]).abs() < 1e-5, "{ua:?} {ub:?}");
+                assert!(
+                    (ua[0] - ub[0]).abs() < 1e-6 && (ua[1] - ub[1]).abs() < 1e-5,
+                    "{ua:?} {ub:?}"
+                );
             }
         }
     }
@@ -363,7 +442,12 @@ fn texture_sets_transforms_and_samplers_reach_the_run_time() {
                 "offset": [0.5, 0.0], "scale": [2.0, 2.0], "texCoord": 1}}}}}),
     );
     b.json["extensionsUsed"] = json!(["KHR_texture_transform"]);
-    let pos = b.floats(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0f32]]);
+    let pos = b.floats(&[
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0f32],
+    ]);
     let uv0 = b.floats(&[[0.0, 0.0f32]; 4]);
     let uv1 = b.floats(&[[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0f32]]);
     let idx = b.indices(&[0, 1, 2, 0, 2, 3]);
@@ -380,11 +464,14 @@ fn texture_sets_transforms_and_samplers_reach_the_run_time() {
     let mean: Vec<f64> = (0..3)
         .map(|c| {
             let px = [[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 255]];
-            px.iter().map(|p: &[u8; 3]| srgb_to_linear(f64::from(p[c]) / 255.0)).sum::<f64>() / 4.0
+            px.iter()
+                .map(|p: &[u8; 3]| srgb_to_linear(f64::from(p[c]) / 255.0))
+                .sum::<f64>()
+                / 4.0
         })
         .collect();
-    for c in 0..3 {
-        assert!((f64::from(m.albedo[c]) - 0.5 * mean[c]).abs() < 1e-6);
+    for (a, t) in m.albedo.iter().zip(&mean) {
+        assert!((f64::from(*a) - 0.5 * t).abs() < 1e-6);
     }
     // TEXCOORD_1 (the transform's override), scaled by 2, offset by
     // (0.5, 0), then v flipped: glTF (u, v) → (2u + 0.5, 1 − 2v).
@@ -400,7 +487,8 @@ fn texture_sets_transforms_and_samplers_reach_the_run_time() {
         let want = [2.0 * u + 0.5, 1.0 - 2.0 * w];
         let got = s.texcoords[v];
         assert!(
-            (f64::from(got[0]) - want[0]).abs() < 1e-6 && (f64::from(got[1]) - want[1]).abs() < 1e-6,
+            (f64::from(got[0]) - want[0]).abs() < 1e-6
+                && (f64::from(got[1]) - want[1]).abs() < 1e-6,
             "vertex {p:?}: {got:?}, expected {want:?}"
         );
     }
@@ -410,12 +498,18 @@ fn texture_sets_transforms_and_samplers_reach_the_run_time() {
     let right_top = tex.sample([0.99, 0.99]);
     let far_right = tex.sample([5.0, 0.99]);
     for c in 0..3 {
-        assert!((right_top[c] - far_right[c]).abs() < 0.02, "{right_top:?} {far_right:?}");
+        assert!(
+            (right_top[c] - far_right[c]).abs() < 0.02,
+            "{right_top:?} {far_right:?}"
+        );
     }
     let mirrored = tex.sample([0.25, 1.25]);
     let inside = tex.sample([0.25, 0.75]);
     for c in 0..3 {
-        assert!((mirrored[c] - inside[c]).abs() < 1e-5, "{mirrored:?} {inside:?}");
+        assert!(
+            (mirrored[c] - inside[c]).abs() < 1e-5,
+            "{mirrored:?} {inside:?}"
+        );
     }
 }
 
@@ -436,8 +530,16 @@ fn metal_and_ignored_features_are_said_and_albedo_follows_one_minus_metallic() {
     b.write_gltf(&path);
     let s = scene::load(&path).unwrap();
     let want = [0.8 * 0.25, 0.6 * 0.25, 0.2 * 0.25];
-    assert!(close3(s.materials[0].albedo.map(f64::from), want, 1e-6), "{:?}", s.materials[0].albedo);
-    let note: Vec<&String> = s.warnings.iter().filter(|w| w.contains("`brass`")).collect();
+    assert!(
+        close3(s.materials[0].albedo.map(f64::from), want, 1e-6),
+        "{:?}",
+        s.materials[0].albedo
+    );
+    let note: Vec<&String> = s
+        .warnings
+        .iter()
+        .filter(|w| w.contains("`brass`"))
+        .collect();
     assert_eq!(note.len(), 1, "one note for the material: {:?}", s.warnings);
     for part in ["metal", "alpha blending", "glossy"] {
         assert!(note[0].contains(part), "{part} not said: {}", note[0]);
@@ -464,14 +566,23 @@ fn room(b: &mut Builder, emitter: Value) -> usize {
             }
             // u × v = axis: counter-clockwise seen from +axis; inward at
             // side 0 is +axis, at side 2 reversed.
-            let idx = if side == 0.0 { [0, 1, 2, 0, 2, 3] } else { [0, 2, 1, 0, 3, 2] };
+            let idx = if side == 0.0 {
+                [0, 1, 2, 0, 2, 3]
+            } else {
+                [0, 2, 1, 0, 3, 2]
+            };
             let pos = b.floats(&pts);
             let i = b.indices(&idx);
             prims.push(json!({"attributes": {"POSITION": pos}, "indices": i, "material": 0}));
         }
     }
     // The emitter: 0.5 m square at y = 1.9, facing −y.
-    let pos = b.floats(&[[0.75, 1.9, 0.75], [1.25, 1.9, 0.75], [1.25, 1.9, 1.25], [0.75, 1.9, 1.25f32]]);
+    let pos = b.floats(&[
+        [0.75, 1.9, 0.75],
+        [1.25, 1.9, 0.75],
+        [1.25, 1.9, 1.25],
+        [0.75, 1.9, 1.25f32],
+    ]);
     let i = b.indices(&[0, 1, 2, 0, 2, 3]);
     prims.push(json!({"attributes": {"POSITION": pos}, "indices": i, "material": 1}));
     b.mesh(prims)
@@ -482,12 +593,17 @@ fn a_textured_emissive_quad_lights_the_room_with_its_textures_mean_power() {
     let dir = temp_dir("gltf-emissive");
     let pixels = [[255, 255, 255], [0, 0, 0], [188, 100, 40], [128, 128, 128]];
     let mean: [f64; 3] = std::array::from_fn(|c| {
-        pixels.iter().map(|p: &[u8; 3]| srgb_to_linear(f64::from(p[c]) / 255.0)).sum::<f64>() / 4.0
+        pixels
+            .iter()
+            .map(|p: &[u8; 3]| srgb_to_linear(f64::from(p[c]) / 255.0))
+            .sum::<f64>()
+            / 4.0
     });
     let factor = [1.0, 0.5, 0.25];
     let strength = 3.0;
     // The expected exitance: π × factor × strength × mean (module doc).
-    let ke: [f64; 3] = std::array::from_fn(|c| std::f64::consts::PI * factor[c] * strength * mean[c]);
+    let ke: [f64; 3] =
+        std::array::from_fn(|c| std::f64::consts::PI * factor[c] * strength * mean[c]);
 
     let mut b = Builder::new();
     let tex = b.png_texture(&png(pixels), json!({}));
@@ -504,7 +620,11 @@ fn a_textured_emissive_quad_lights_the_room_with_its_textures_mean_power() {
     std::fs::write(&textured, b.glb_bytes()).unwrap();
     let s = scene::load(&textured).unwrap();
     let lamp = s.materials.iter().find(|m| m.name == "lamp").unwrap();
-    assert!(close3(lamp.emission.map(f64::from), ke, 1e-5 * ke[0]), "{:?} vs {ke:?}", lamp.emission);
+    assert!(
+        close3(lamp.emission.map(f64::from), ke, 1e-5 * ke[0]),
+        "{:?} vs {ke:?}",
+        lamp.emission
+    );
 
     // The same room whose lamp has the constant exitance Ke, written as
     // an OBJ: the run time's radiosity must be the same.
@@ -566,7 +686,10 @@ fn double_sided_materials_are_baked_with_back_sides() {
     let quad = unit_quad(&mut b, Some(2));
     let screen = b.mesh(vec![quad]);
     b.push("nodes", json!({"mesh": mesh}));
-    b.push("nodes", json!({"mesh": screen, "translation": [0.5, 0.2, 1.0]}));
+    b.push(
+        "nodes",
+        json!({"mesh": screen, "translation": [0.5, 0.2, 1.0]}),
+    );
     b.push("scenes", json!({"nodes": [0, 1]}));
     let path = dir.join("double.glb");
     std::fs::write(&path, b.glb_bytes()).unwrap();
@@ -578,7 +701,10 @@ fn double_sided_materials_are_baked_with_back_sides() {
     let mut c = bake_config(&path, Resolution::Patches(150));
     c.as_wound = true;
     let (baked, out) = bake_to(c, &dir.join("double.rad"));
-    assert_eq!(baked.options.twinned, screen_tris, "as wound: the double-sided faces only");
+    assert_eq!(
+        baked.options.twinned, screen_tris,
+        "as wound: the double-sided faces only"
+    );
     assert_eq!(out.report.winding.double_sided, 2);
     // Patches on both sides of the screen (normals ±z at z = 1).
     let sides: Vec<f64> = out
@@ -587,7 +713,10 @@ fn double_sided_materials_are_baked_with_back_sides() {
         .filter(|p| (p.centre[2] - 1.0).abs() < 1e-3 && p.normal[2].abs() > 0.99)
         .map(|p| p.normal[2])
         .collect();
-    assert!(sides.iter().any(|&z| z > 0.0) && sides.iter().any(|&z| z < 0.0), "{sides:?}");
+    assert!(
+        sides.iter().any(|&z| z > 0.0) && sides.iter().any(|&z| z < 0.0),
+        "{sides:?}"
+    );
 }
 
 /// Reads a PFM's pixels (as `radiosity render --hdr` writes them).
@@ -624,7 +753,9 @@ fn a_textured_room_renders_the_same_from_obj_gltf_and_glb_on_cpu_and_gl() {
     // A 4 × 4 texture of distinct colours, in a file whose name has a
     // space (a percent-escaped URI in the .gltf).
     std::fs::create_dir_all(dir.join("tex")).unwrap();
-    let img = image::RgbImage::from_fn(4, 4, |x, y| image::Rgb([(60 * x + 20) as u8, (60 * y + 20) as u8, 200]));
+    let img = image::RgbImage::from_fn(4, 4, |x, y| {
+        image::Rgb([(60 * x + 20) as u8, (60 * y + 20) as u8, 200])
+    });
     img.save(dir.join("tex/floor tiles.png")).unwrap();
     // The room [0, 2]³ seen from inside; the floor's texture repeats twice.
     let mut obj = String::from("mtllib room.mtl\n");
@@ -650,7 +781,10 @@ fn a_textured_room_renders_the_same_from_obj_gltf_and_glb_on_cpu_and_gl() {
     convert(&dir.join("room.obj"), &glb);
     convert(&dir.join("room.obj"), &gltf);
     let text = std::fs::read_to_string(&gltf).unwrap();
-    assert!(text.contains("tex/floor%20tiles.png"), "the converter escapes the URI");
+    assert!(
+        text.contains("tex/floor%20tiles.png"),
+        "the converter escapes the URI"
+    );
     let bin = env!("CARGO_BIN_EXE_radiosity");
     let render = |scene: &Path, backend: &str| -> Vec<f32> {
         let hdr = dir.join(format!(
@@ -659,19 +793,46 @@ fn a_textured_room_renders_the_same_from_obj_gltf_and_glb_on_cpu_and_gl() {
         ));
         let out = Command::new(bin)
             .env("RADIOSITY_CACHE_DIR", dir.join("cache"))
-            .args(["render", scene.to_str().unwrap(), "--patches", "100", "--backend", backend])
-            .args(["--camera-lights", lights.to_str().unwrap(), "--width", "96", "--height", "72"])
-            .args(["-o", dir.join("x.png").to_str().unwrap(), "--hdr", hdr.to_str().unwrap()])
+            .args([
+                "render",
+                scene.to_str().unwrap(),
+                "--patches",
+                "100",
+                "--backend",
+                backend,
+            ])
+            .args([
+                "--camera-lights",
+                lights.to_str().unwrap(),
+                "--width",
+                "96",
+                "--height",
+                "72",
+            ])
+            .args([
+                "-o",
+                dir.join("x.png").to_str().unwrap(),
+                "--hdr",
+                hdr.to_str().unwrap(),
+            ])
             .output()
             .unwrap();
-        assert!(out.status.success(), "{}: {}", scene.display(), String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            scene.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
         read_pfm(&hdr)
     };
     for backend in ["cpu", "gl"] {
         let reference = render(&dir.join("room.obj"), backend);
         for scene in [&glb, &gltf] {
             let e = rel_rms(&render(scene, backend), &reference);
-            eprintln!("{backend} {}: relative RMS {e:.3e} against the OBJ", scene.display());
+            eprintln!(
+                "{backend} {}: relative RMS {e:.3e} against the OBJ",
+                scene.display()
+            );
             // The same bake and the same texels; the texture coordinates
             // differ by the rounding of 1 − (1 − v) in f32 (1e-7 of the
             // texture), which moves a bilinear sample by far less than
@@ -700,32 +861,56 @@ fn lights_convert_photometric_units_and_the_camera_is_the_start_view() {
         {"type": "spot", "intensity": 1366.0, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.5}, "range": 10.0},
         {"type": "directional", "intensity": 1366.0}
     ]}});
-    b.push("nodes", json!({"mesh": mesh, "translation": [-0.5, 0.0, 0.5], "rotation": [-h, 0.0, 0.0, h]}));
+    b.push(
+        "nodes",
+        json!({"mesh": mesh, "translation": [-0.5, 0.0, 0.5], "rotation": [-h, 0.0, 0.0, h]}),
+    );
     b.push("nodes", json!({"translation": [0.0, 2.0, 0.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}));
     b.push("nodes", json!({"translation": [0.0, 3.0, 0.0], "rotation": down, "extensions": {"KHR_lights_punctual": {"light": 1}}}));
-    b.push("nodes", json!({"rotation": down, "extensions": {"KHR_lights_punctual": {"light": 2}}}));
-    b.push("cameras", json!({"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}));
-    b.push("nodes", json!({"translation": [0.0, 1.0, 5.0], "camera": 0}));
+    b.push(
+        "nodes",
+        json!({"rotation": down, "extensions": {"KHR_lights_punctual": {"light": 2}}}),
+    );
+    b.push(
+        "cameras",
+        json!({"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}),
+    );
+    b.push(
+        "nodes",
+        json!({"translation": [0.0, 1.0, 5.0], "camera": 0}),
+    );
     b.push("scenes", json!({"nodes": [0, 1, 2, 3, 4]}));
     let path = dir.join("lit.gltf");
     b.write_gltf(&path);
     let s = scene::load(&path).unwrap();
-        // The quaternion's numbers are read as f32: 1e-7 rounding.
+    // The quaternion's numbers are read as f32: 1e-7 rounding.
     assert!(close3(s.triangle_normal(0), [0.0, 1.0, 0.0], 1e-6));
     assert_eq!(s.authored.lights.len(), 3);
-    assert!(s.warnings.iter().any(|w| w.contains("range")), "{:?}", s.warnings);
+    assert!(
+        s.warnings.iter().any(|w| w.contains("range")),
+        "{:?}",
+        s.warnings
+    );
     // Irradiance at the floor's centre (0, 0, 0) facing up, by hand:
     // point 683 cd / 683 at 2 m: 1/4 W/m² × colour; spot 1366 cd on its
     // axis at 3 m: 2/9; sun of 1366 lx straight down: 2 W/m².
     let x = [0.0, 0.0, 0.0];
     let n = [0.0, 1.0, 0.0];
-    let e = |l: &Light| incident(l, x, n, 100.0).map(|i| i.irradiance).unwrap_or([0.0; 3]);
+    let e = |l: &Light| {
+        incident(l, x, n, 100.0)
+            .map(|i| i.irradiance)
+            .unwrap_or([0.0; 3])
+    };
     let want = [[0.25, 0.125, 0.0625], [2.0 / 9.0; 3], [2.0; 3]];
     for (l, w) in s.authored.lights.iter().zip(want) {
         assert!(close3(e(l), w, 1e-6), "{l:?}: {:?} vs {w:?}", e(l));
     }
     match &s.authored.lights[1] {
-        Light::Spot { cone_angle_deg, beam_angle_deg, .. } => {
+        Light::Spot {
+            cone_angle_deg,
+            beam_angle_deg,
+            ..
+        } => {
             assert!((f64::from(*cone_angle_deg) - 0.5f64.to_degrees()).abs() < 1e-4);
             assert!((f64::from(*beam_angle_deg) - 0.2f64.to_degrees()).abs() < 1e-4);
         }
@@ -735,11 +920,20 @@ fn lights_convert_photometric_units_and_the_camera_is_the_start_view() {
     let config = radiosity::core::default_view::config_for(&s);
     let c = &config.camera;
     assert!(close3(c.position.map(f64::from), [0.0, 1.0, 5.0], 1e-6));
-    let d: Vec<f64> = (0..3).map(|k| f64::from(c.target[k] - c.position[k])).collect();
-    assert!(d[0].abs() < 1e-6 && d[1].abs() < 1e-6 && d[2] < 0.0, "looks down −z: {d:?}");
+    let d: Vec<f64> = (0..3)
+        .map(|k| f64::from(c.target[k] - c.position[k]))
+        .collect();
+    assert!(
+        d[0].abs() < 1e-6 && d[1].abs() < 1e-6 && d[2] < 0.0,
+        "looks down −z: {d:?}"
+    );
     assert!((f64::from(c.fov_y_deg) - 0.8f64.to_degrees()).abs() < 1e-4);
     assert_eq!(config.lights, s.authored.lights);
-    assert!(config.description.contains("lit.gltf"), "{}", config.description);
+    assert!(
+        config.description.contains("lit.gltf"),
+        "{}",
+        config.description
+    );
 }
 
 #[test]
@@ -752,25 +946,61 @@ fn view_and_render_use_the_files_camera_and_lights_and_a_json_overrides_them() {
                "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0], "metallicFactor": 0.0}}),
     );
     b.json["extensionsUsed"] = json!(["KHR_lights_punctual"]);
-    b.json["extensions"] = json!({"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 100.0}]}});
+    b.json["extensions"] =
+        json!({"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 100.0}]}});
     b.push("nodes", json!({"mesh": mesh}));
     b.push("nodes", json!({"translation": [1.0, 1.5, 1.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}));
-    b.push("cameras", json!({"type": "perspective", "perspective": {"yfov": 1.0, "znear": 0.01}}));
-    b.push("nodes", json!({"translation": [1.0, 1.0, 1.9], "camera": 0}));
+    b.push(
+        "cameras",
+        json!({"type": "perspective", "perspective": {"yfov": 1.0, "znear": 0.01}}),
+    );
+    b.push(
+        "nodes",
+        json!({"translation": [1.0, 1.0, 1.9], "camera": 0}),
+    );
     b.push("scenes", json!({"nodes": [0, 1, 2]}));
     let glb = dir.join("room.glb");
     std::fs::write(&glb, b.glb_bytes()).unwrap();
     let bin = env!("CARGO_BIN_EXE_radiosity");
     let run = |args: &[&str]| {
         let out = Command::new(bin).args(args).output().unwrap();
-        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
-        String::from_utf8_lossy(&out.stderr).into_owned()
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        )
     };
     let rad = dir.join("room.rad");
-    run(&["bake", glb.to_str().unwrap(), "--patches", "100", "-o", rad.to_str().unwrap()]);
+    let said = run(&[
+        "bake",
+        glb.to_str().unwrap(),
+        "--patches",
+        "100",
+        "-o",
+        rad.to_str().unwrap(),
+    ]);
+    // The voxel size in metres, the unit glTF fixes.
+    assert!(said.contains(" m, grid "), "{said}");
     let png = dir.join("a.png");
-    let said = run(&["render", rad.to_str().unwrap(), "-o", png.to_str().unwrap(), "--width", "64", "--height", "48"]);
-    assert!(said.contains("the camera and 1 light(s) of room.glb"), "{said}");
+    let said = run(&[
+        "render",
+        rad.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
+    assert!(
+        said.contains("the camera and 1 light(s) of room.glb"),
+        "{said}"
+    );
     // A camera-and-lights file beside the scene wins.
     std::fs::write(
         dir.join("room.json"),
@@ -778,12 +1008,36 @@ fn view_and_render_use_the_files_camera_and_lights_and_a_json_overrides_them() {
             "lights": [{"type": "point", "position": [1, 1.5, 1], "intensity": [1, 1, 1]}], "units": "m"}"#,
     )
     .unwrap();
-    let said = run(&["render", rad.to_str().unwrap(), "-o", png.to_str().unwrap(), "--width", "64", "--height", "48"]);
+    let said = run(&[
+        "render",
+        rad.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
     assert!(!said.contains("light(s) of room.glb"), "{said}");
+    // The Mitsuba export takes it too: the room's meshes and its light.
+    let said = run(&[
+        "export-mitsuba",
+        glb.to_str().unwrap(),
+        "-o",
+        dir.join("mitsuba").to_str().unwrap(),
+    ]);
+    assert!(said.contains("1 lights"), "{said}");
+    assert!(dir.join("mitsuba/scene.xml").is_file());
     // `info` on the .glb reports metres and the file's view.
-    let out = Command::new(bin).args(["info", glb.to_str().unwrap()]).output().unwrap();
+    let out = Command::new(bin)
+        .args(["info", glb.to_str().unwrap()])
+        .output()
+        .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("(metres)") && text.contains("a camera, 1 light(s) from the file"), "{text}");
+    assert!(
+        text.contains("(metres)") && text.contains("a camera, 1 light(s) from the file"),
+        "{text}"
+    );
 }
 
 // ---------------------------------------------------------------------------
@@ -833,22 +1087,33 @@ fn broken_files_are_errors_that_say_what_is_wrong() {
     let mut j = base(json!({}));
     j["accessors"][0]["count"] = json!(400);
     let e = load_err(&write("long.gltf", &j.to_string()));
-    assert!(e.contains("POSITION (accessor 0)") && e.contains("400 elements"), "{e}");
+    assert!(
+        e.contains("POSITION (accessor 0)") && e.contains("400 elements"),
+        "{e}"
+    );
     // An index past the vertices: the indices' view rewritten to hold 7.
     let mut b = Builder::new();
     let pos = b.floats(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0f32]]);
     let idx = b.indices(&[0, 1, 7]);
-    let mesh = b.mesh(vec![json!({"attributes": {"POSITION": pos}, "indices": idx})]);
+    let mesh = b.mesh(vec![
+        json!({"attributes": {"POSITION": pos}, "indices": idx}),
+    ]);
     b.push("nodes", json!({"mesh": mesh}));
     b.push("scenes", json!({"nodes": [0]}));
     let p = dir.join("index.glb");
     std::fs::write(&p, b.glb_bytes()).unwrap();
     let e = load_err(&p);
-    assert!(e.contains("index 2 is 7") && e.contains("meshes[0].primitives[0] indices"), "{e}");
+    assert!(
+        e.contains("index 2 is 7") && e.contains("meshes[0].primitives[0] indices"),
+        "{e}"
+    );
     // A texture that is not an image.
     let mut b = Builder::new();
     let tex = b.png_texture(b"not a png at all", json!({}));
-    b.push("materials", json!({"name": "broken", "pbrMetallicRoughness": {"baseColorTexture": {"index": tex}}}));
+    b.push(
+        "materials",
+        json!({"name": "broken", "pbrMetallicRoughness": {"baseColorTexture": {"index": tex}}}),
+    );
     let quad = unit_quad(&mut b, Some(0));
     let mesh = b.mesh(vec![quad]);
     b.push("nodes", json!({"mesh": mesh}));
@@ -856,13 +1121,24 @@ fn broken_files_are_errors_that_say_what_is_wrong() {
     let p = dir.join("texture.glb");
     std::fs::write(&p, b.glb_bytes()).unwrap();
     let e = load_err(&p);
-    assert!(e.contains("`broken`") && e.contains("baseColorTexture") && e.contains("image 0"), "{e}");
+    assert!(
+        e.contains("`broken`") && e.contains("baseColorTexture") && e.contains("image 0"),
+        "{e}"
+    );
     // A compression extension the loader cannot read.
-    let j = base(json!({"extensionsUsed": ["KHR_draco_mesh_compression"], "extensionsRequired": ["KHR_draco_mesh_compression"]}));
+    let j = base(
+        json!({"extensionsUsed": ["KHR_draco_mesh_compression"], "extensionsRequired": ["KHR_draco_mesh_compression"]}),
+    );
     let e = load_err(&write("draco.gltf", &j.to_string()));
-    assert!(e.contains("KHR_draco_mesh_compression") && e.contains("Draco"), "{e}");
+    assert!(
+        e.contains("KHR_draco_mesh_compression") && e.contains("Draco"),
+        "{e}"
+    );
     // Not JSON: the line is named.
-    let e = load_err(&write("syntax.gltf", "{\n  \"asset\": {\"version\": \"2.0\"},\n  oops\n}"));
+    let e = load_err(&write(
+        "syntax.gltf",
+        "{\n  \"asset\": {\"version\": \"2.0\"},\n  oops\n}",
+    ));
     assert!(e.contains("syntax.gltf:3"), "{e}");
     // A node cycle.
     let j = base(json!({"nodes": [{"mesh": 0, "children": [1]}, {"children": [0]}]}));
@@ -881,7 +1157,10 @@ fn broken_files_are_errors_that_say_what_is_wrong() {
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("short.glb") && !stderr.contains("panicked"), "{stderr}");
+    assert!(
+        stderr.contains("short.glb") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
 }
 
 /// A `.glb` using most of what the loader reads: a node tree with a
@@ -889,22 +1168,39 @@ fn broken_files_are_errors_that_say_what_is_wrong() {
 /// double-sided material, a strip, lights and a camera.
 fn rich_glb() -> Vec<u8> {
     let mut b = Builder::new();
-    let tex = b.png_texture(&png([[255, 0, 0], [0, 255, 0], [0, 0, 255], [9, 9, 9]]), json!({"wrapS": 33071}));
+    let tex = b.png_texture(
+        &png([[255, 0, 0], [0, 255, 0], [0, 0, 255], [9, 9, 9]]),
+        json!({"wrapS": 33071}),
+    );
     b.push(
         "materials",
         json!({"name": "m", "doubleSided": true, "emissiveFactor": [0.1, 0.1, 0.1],
                "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0], "metallicFactor": 0.5,
                "baseColorTexture": {"index": tex, "extensions": {"KHR_texture_transform": {"scale": [2.0, 2.0]}}}}}),
     );
-    let pos = b.floats(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0f32]]);
+    let pos = b.floats(&[
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [1.0, 1.0, 0.0f32],
+    ]);
     let uv = b.floats(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0f32]]);
     let quad = unit_quad(&mut b, Some(0));
-    let mesh = b.mesh(vec![quad, json!({"attributes": {"POSITION": pos, "TEXCOORD_0": uv}, "mode": 5, "material": 0})]);
+    let mesh = b.mesh(vec![
+        quad,
+        json!({"attributes": {"POSITION": pos, "TEXCOORD_0": uv}, "mode": 5, "material": 0}),
+    ]);
     b.json["extensionsUsed"] = json!(["KHR_lights_punctual", "KHR_texture_transform"]);
     b.json["extensions"] = json!({"KHR_lights_punctual": {"lights": [
         {"type": "spot", "intensity": 10.0, "spot": {"outerConeAngle": 0.5}}, {"type": "point", "intensity": 5.0}]}});
-    b.push("cameras", json!({"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}));
-    b.push("nodes", json!({"translation": [0.0, 1.0, 0.0], "children": [1, 2]}));
+    b.push(
+        "cameras",
+        json!({"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}),
+    );
+    b.push(
+        "nodes",
+        json!({"translation": [0.0, 1.0, 0.0], "children": [1, 2]}),
+    );
     b.push("nodes", json!({"mesh": mesh, "scale": [-1.0, 1.0, 1.0]}));
     b.push("nodes", json!({"camera": 0, "translation": [0.0, 0.0, 3.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}));
     b.push("nodes", json!({"translation": [0.0, 2.0, 0.0], "extensions": {"KHR_lights_punctual": {"light": 1}}}));

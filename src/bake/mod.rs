@@ -504,7 +504,10 @@ pub fn transfer_stages(
             // area and materials stay the probes' findings.
             let mut probed = std::mem::take(&mut w.twinned);
             probed.retain(|t| double_sided.binary_search(t).is_err());
-            w.twinned_area = probed.iter().map(|&t| loaded.triangle_area(t as usize)).sum();
+            w.twinned_area = probed
+                .iter()
+                .map(|&t| loaded.triangle_area(t as usize))
+                .sum();
             w.twinned = probed;
             w.double_sided = double_sided.len();
             w.twinned.extend(&double_sided);

@@ -160,8 +160,10 @@ impl std::fmt::Display for BakeReport {
         writeln!(f, "{}", self.winding)?;
         writeln!(
             f,
-            "voxels: size {:.6}, grid {}x{}x{}, {} occupied, {} triangle/voxel pieces ({} candidates, {} slivers of total area {:.3e})",
+            "voxels: size {:.6} {}, grid {}x{}x{}, {} occupied, {} triangle/voxel pieces ({} candidates, {} slivers of total area {:.3e})",
             v.voxel_size,
+            // glTF fixes metres; an OBJ has no unit.
+            if self.scene.units == "metres" { "m" } else { "scene units" },
             v.grid_dims[0],
             v.grid_dims[1],
             v.grid_dims[2],

@@ -117,8 +117,8 @@ impl SceneHash {
             libraries.clear();
             // A glTF file's side files: the buffers and images its URIs
             // name, in the file's order (a data URI is in the file's bytes).
-            let side = crate::core::scene::files::gltf_side_files(obj_path)
-                .map_err(err(obj_path))?;
+            let side =
+                crate::core::scene::files::gltf_side_files(obj_path).map_err(err(obj_path))?;
             for path in side {
                 let rel = path.strip_prefix(dir).unwrap_or(&path);
                 mtl.update(rel.to_string_lossy().as_bytes());

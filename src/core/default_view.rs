@@ -139,10 +139,7 @@ pub fn config_for(scene: &Scene) -> SceneConfig {
             camera: a.camera.clone().expect("checked"),
             lights: a.lights.clone(),
             units: "metres".to_string(),
-            description: format!(
-                "the camera and {} light(s) of {name}",
-                a.lights.len()
-            ),
+            description: format!("the camera and {} light(s) of {name}", a.lights.len()),
             emission: Default::default(),
         };
     }

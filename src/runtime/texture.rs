@@ -50,7 +50,8 @@ impl Texture {
         let (fx, fy) = (x - x0, y - y0);
         let [ws, wt] = self.wrap;
         let at = |i: f32, j: f32| {
-            self.texels[wt.texel(j as i64, self.height) * self.width + ws.texel(i as i64, self.width)]
+            self.texels
+                [wt.texel(j as i64, self.height) * self.width + ws.texel(i as i64, self.width)]
         };
         let (a, b, c, d) = (
             at(x0, y0),

@@ -459,7 +459,7 @@ where
         triangle_material,
         materials,
         repairs,
-        warnings: warnings,
+        warnings,
         twins: Vec::new(),
         authored: super::Authored::default(),
     })

@@ -105,8 +105,9 @@ impl ImageSource {
                 .map_err(|e| format!("cannot read {}: {e}", p.display()))?
                 .decode()
                 .map_err(|e| format!("cannot decode {}: {e}", p.display())),
-            ImageSource::Embedded { label, bytes } => image::load_from_memory(bytes)
-                .map_err(|e| format!("cannot decode {label}: {e}")),
+            ImageSource::Embedded { label, bytes } => {
+                image::load_from_memory(bytes).map_err(|e| format!("cannot decode {label}: {e}"))
+            }
         }
     }
 

@@ -96,9 +96,7 @@ pub(super) fn resolve_materials(
             albedo,
             emission,
             kd,
-            diffuse_texture: texture
-                .filter(|_| mean.is_some())
-                .map(DiffuseTexture::file),
+            diffuse_texture: texture.filter(|_| mean.is_some()).map(DiffuseTexture::file),
             double_sided: false,
         });
     }

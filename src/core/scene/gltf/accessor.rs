@@ -83,10 +83,12 @@ fn component(bytes: &[u8], t: DataType, normalized: bool, k: usize) -> f64 {
 /// The bytes of buffer view `view` (checked against the loaded buffer).
 fn view_bytes<'b>(view: &gltf::buffer::View, buffers: &'b Buffers) -> Result<&'b [u8], String> {
     let b = view.buffer().index();
-    let data = buffers
-        .0
-        .get(b)
-        .ok_or_else(|| format!("bufferView {} names buffer {b}, which was not loaded", view.index()))?;
+    let data = buffers.0.get(b).ok_or_else(|| {
+        format!(
+            "bufferView {} names buffer {b}, which was not loaded",
+            view.index()
+        )
+    })?;
     let (start, len) = (view.offset() as u64, view.length() as u64);
     let end = start + len;
     if end > data.len() as u64 {
@@ -200,9 +202,9 @@ pub fn read_vectors<const N: usize>(
         )?;
         for (i, v) in indices.into_iter().zip(values) {
             let i = component(i, it, false, 0) as usize;
-            let slot = out.get_mut(i).ok_or_else(|| {
-                format!("{what}: sparse index {i} is past its {count} elements")
-            })?;
+            let slot = out
+                .get_mut(i)
+                .ok_or_else(|| format!("{what}: sparse index {i} is past its {count} elements"))?;
             *slot = decode(v);
         }
     }

@@ -146,9 +146,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
                 }
             }
             if doc.meshes().len() > 0 {
-                warnings.push(
-                    "the file has no scene: every root node is drawn".to_owned(),
-                );
+                warnings.push("the file has no scene: every root node is drawn".to_owned());
             }
             doc.nodes().filter(|n| !child[n.index()]).collect()
         }
@@ -437,10 +435,7 @@ fn load_buffers(
                     let file = dir.join(percent_decode(uri));
                     // A file far larger than declared is read only so far.
                     let meta = std::fs::metadata(&file).map_err(|e| {
-                        invalid(format!(
-                            "buffer {i}: cannot read {} ({e})",
-                            file.display()
-                        ))
+                        invalid(format!("buffer {i}: cannot read {} ({e})", file.display()))
                     })?;
                     if meta.len() < b.length() as u64 {
                         return Err(invalid(format!(
@@ -451,10 +446,7 @@ fn load_buffers(
                         )));
                     }
                     std::fs::read(&file).map_err(|e| {
-                        invalid(format!(
-                            "buffer {i}: cannot read {} ({e})",
-                            file.display()
-                        ))
+                        invalid(format!("buffer {i}: cannot read {} ({e})", file.display()))
                     })?
                 }
             },
@@ -560,9 +552,7 @@ fn add_primitive(
         if k == n {
             Ok(())
         } else {
-            Err(format!(
-                "{what} {name} has {k} elements, POSITION has {n}"
-            ))
+            Err(format!("{what} {name} has {k} elements, POSITION has {n}"))
         }
     };
     raw.positions.extend(
@@ -592,7 +582,8 @@ fn add_primitive(
             for nrm in v {
                 raw.normals.push(nrm.as_vec3().to_array());
                 // A zero or non-finite normal counts as absent.
-                raw.has_normal.push(nrm.length_squared() > 0.5 && nrm.is_finite());
+                raw.has_normal
+                    .push(nrm.length_squared() > 0.5 && nrm.is_finite());
             }
         }
         None => {
@@ -665,7 +656,7 @@ fn add_primitive(
     };
     match mode {
         Mode::Triangles => {
-            if indices.len() % 3 != 0 {
+            if !indices.len().is_multiple_of(3) {
                 return Err(format!(
                     "{what}: {} indices do not make whole triangles",
                     indices.len()
@@ -757,10 +748,14 @@ fn texture_of(
     let image = match (&doc_image.buffer_view, &doc_image.uri) {
         (Some(v), _) => {
             let v = v.value();
-            let view = doc.views().nth(v).ok_or_else(|| format!("image {i}: bufferView {v} does not exist"))?;
-            let b = buffers.0.get(view.buffer().index()).ok_or_else(|| {
-                format!("image {i}: bufferView {v} names a missing buffer")
-            })?;
+            let view = doc
+                .views()
+                .nth(v)
+                .ok_or_else(|| format!("image {i}: bufferView {v} does not exist"))?;
+            let b = buffers
+                .0
+                .get(view.buffer().index())
+                .ok_or_else(|| format!("image {i}: bufferView {v} names a missing buffer"))?;
             let end = view.offset() as u64 + view.length() as u64;
             if end > b.len() as u64 {
                 return Err(format!(
@@ -805,16 +800,23 @@ fn resolve_material(
     let mut notes = Vec::new();
     let pbr = m.pbr_metallic_roughness();
     let [r, g, b, _] = pbr.base_color_factor();
-    for (key, v) in [("baseColorFactor", [r, g, b]), ("emissiveFactor", m.emissive_factor())] {
+    for (key, v) in [
+        ("baseColorFactor", [r, g, b]),
+        ("emissiveFactor", m.emissive_factor()),
+    ] {
         if v.iter().any(|c| !c.is_finite() || *c < 0.0) {
-            return Err(format!("{key} {v:?} has a negative or non-finite component"));
+            return Err(format!(
+                "{key} {v:?} has a negative or non-finite component"
+            ));
         }
     }
     // Metalness: the factor times the texture's mean blue (linear data).
     let mut metallic = f64::from(pbr.metallic_factor());
     if let Some(info) = pbr.metallic_roughness_texture() {
         let t = texture_of(doc, &info.texture(), dir, buffers)?;
-        let img = t.decode().map_err(|e| format!("metallicRoughnessTexture: {e}"))?;
+        let img = t
+            .decode()
+            .map_err(|e| format!("metallicRoughnessTexture: {e}"))?;
         let rgb = img.to_rgb8();
         let px = rgb.pixels().len().max(1) as f64;
         let blue: f64 = rgb.pixels().map(|p| f64::from(p[2])).sum::<f64>() / 255.0;
@@ -833,10 +835,12 @@ fn resolve_material(
     let texture = match pbr.base_color_texture() {
         Some(info) => {
             let t = texture_of(doc, &info.texture(), dir, buffers)?;
-            let img = t
-                .decode()
-                .map_err(|e| format!("baseColorTexture: {e}"))?;
-            Some((texture_mean_linear(&img).map_err(|e| format!("baseColorTexture {}: {e}", t.describe()))?, t))
+            let img = t.decode().map_err(|e| format!("baseColorTexture: {e}"))?;
+            Some((
+                texture_mean_linear(&img)
+                    .map_err(|e| format!("baseColorTexture {}: {e}", t.describe()))?,
+                t,
+            ))
         }
         None => None,
     };
@@ -846,7 +850,9 @@ fn resolve_material(
     };
     let strength = f64::from(m.emissive_strength().unwrap_or(1.0));
     if !strength.is_finite() || strength < 0.0 {
-        return Err(format!("emissive_strength {strength} is negative or not finite"));
+        return Err(format!(
+            "emissive_strength {strength} is negative or not finite"
+        ));
     }
     let mut radiance = m.emissive_factor().map(|c| f64::from(c) * strength);
     if let Some(info) = m.emissive_texture() {
@@ -859,19 +865,30 @@ fn resolve_material(
         }
     }
     let emission = radiance.map(|l| (std::f64::consts::PI * l) as f32);
+    for ext in ["KHR_materials_pbrSpecularGlossiness", "KHR_materials_unlit"] {
+        if m.extensions().is_some_and(|e| e.contains_key(ext)) {
+            notes.push(format!(
+                "does not read {ext}: the metallic-roughness values (or their defaults) are used"
+            ));
+        }
+    }
     if m.normal_texture().is_some() {
         notes.push("ignores the normal map".to_owned());
     }
     if m.occlusion_texture().is_some() {
         notes.push("ignores the occlusion map (the bake computes occlusion)".to_owned());
     }
-    if m.transmission().is_some_and(|t| t.transmission_factor() > 0.0) {
+    if m.transmission()
+        .is_some_and(|t| t.transmission_factor() > 0.0)
+    {
         notes.push("shows transmission as opaque".to_owned());
     }
     match m.alpha_mode() {
         gltf::material::AlphaMode::Opaque => {}
         gltf::material::AlphaMode::Mask => notes.push("ignores alpha masking (opaque)".to_owned()),
-        gltf::material::AlphaMode::Blend => notes.push("ignores alpha blending (opaque)".to_owned()),
+        gltf::material::AlphaMode::Blend => {
+            notes.push("ignores alpha blending (opaque)".to_owned())
+        }
     }
     if pbr.roughness_factor() < 0.5 && metallic < 1.0 {
         notes.push(format!(
@@ -893,7 +910,11 @@ fn resolve_material(
 }
 
 /// A `KHR_lights_punctual` light at its node (module doc for units).
-fn convert_light(l: &gltf::khr_lights_punctual::Light, world: &DMat4, skipped: &mut Skipped) -> Light {
+fn convert_light(
+    l: &gltf::khr_lights_punctual::Light,
+    world: &DMat4,
+    skipped: &mut Skipped,
+) -> Light {
     if l.range().is_some() {
         skipped.ranges += 1;
     }
@@ -924,7 +945,9 @@ fn convert_light(l: &gltf::khr_lights_punctual::Light, world: &DMat4, skipped: &
             direction,
             intensity: power,
             cone_angle_deg: outer_cone_angle.to_degrees(),
-            beam_angle_deg: inner_cone_angle.to_degrees().min(outer_cone_angle.to_degrees()),
+            beam_angle_deg: inner_cone_angle
+                .to_degrees()
+                .min(outer_cone_angle.to_degrees()),
         },
     }
 }
@@ -991,7 +1014,12 @@ mod tests {
 
     #[test]
     fn data_uris_decode_base64_only() {
-        assert_eq!(data_uri("data:application/octet-stream;base64,AAEC").unwrap().unwrap(), vec![0, 1, 2]);
+        assert_eq!(
+            data_uri("data:application/octet-stream;base64,AAEC")
+                .unwrap()
+                .unwrap(),
+            vec![0, 1, 2]
+        );
         assert!(data_uri("data:text/plain,abc").unwrap().is_err());
         assert!(data_uri("file.bin").is_none());
     }
