@@ -477,43 +477,39 @@ struct Skipped {
 }
 
 impl Skipped {
+    /// One warning per kind of thing left out, with its count.
     fn say(&self, w: &mut Vec<String>) {
-        if self.points_lines > 0 {
-            w.push(format!(
-                "{} point or line primitive(s) ignored (only surfaces take part)",
-                self.points_lines
-            ));
-        }
-        if self.skinned > 0 {
-            w.push(format!(
-                "{} skinned mesh node(s) drawn in their bind pose at their node's transform",
-                self.skinned
-            ));
-        }
-        if self.morphed > 0 {
-            w.push(format!(
-                "{} mesh(es) with morph targets drawn without them",
-                self.morphed
-            ));
-        }
-        if self.orthographic > 0 {
-            w.push(format!(
-                "{} orthographic camera(s) ignored (the run time's camera is a pinhole)",
-                self.orthographic
-            ));
-        }
-        if self.ranges > 0 {
-            w.push(format!(
-                "{} light(s) have a range, ignored: the falloff is inverse-square to infinity",
-                self.ranges
-            ));
-        }
-        if self.missing_texcoords > 0 {
-            w.push(format!(
-                "{} textured primitive(s) lack the texture coordinate set their material's \
+        let kinds = [
+            (
+                self.points_lines,
+                "point or line primitive(s) ignored (only surfaces take part)",
+            ),
+            (
+                self.skinned,
+                "skinned mesh node(s) drawn in their bind pose at their node's transform",
+            ),
+            (
+                self.morphed,
+                "mesh(es) with morph targets drawn without them",
+            ),
+            (
+                self.orthographic,
+                "orthographic camera(s) ignored (the run time's camera is a pinhole)",
+            ),
+            (
+                self.ranges,
+                "light(s) have a range, ignored: the falloff is inverse-square to infinity",
+            ),
+            (
+                self.missing_texcoords,
+                "textured primitive(s) lack the texture coordinate set their material's \
                  texture uses: drawn with its mean colour",
-                self.missing_texcoords
-            ));
+            ),
+        ];
+        for (n, what) in kinds {
+            if n > 0 {
+                w.push(format!("{n} {what}"));
+            }
         }
     }
 }
