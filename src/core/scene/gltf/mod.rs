@@ -41,28 +41,26 @@
 //! - **Units**: metres and `+y` up, as the spec fixes; nothing is rescaled.
 
 pub mod accessor;
+mod material;
+mod primitive;
+mod view;
+
+pub use view::LUMENS_PER_WATT;
 
 use super::build::{finish, Finish, Raw};
-use super::material::texture_mean_linear;
-use super::{
-    Authored, DiffuseTexture, ImageSource, Material, Repairs, Scene, Wrap, DEFAULT_ALBEDO,
-};
+use super::{Authored, Material, Repairs, Scene, DEFAULT_ALBEDO};
 use crate::core::error::SceneError;
-use crate::core::scene_config::{Camera, Light};
-use accessor::{read_indices, read_vectors, Buffers};
+use crate::core::scene_config::Camera;
+use accessor::Buffers;
 use base64::Engine as _;
-use glam::{DMat3, DMat4, DVec3};
-use gltf::mesh::Mode;
+use glam::{DMat4, DVec3};
 use gltf::Semantic;
+use material::{material_names, resolve_material};
+use primitive::add_primitive;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-
-/// Luminous efficacy used to turn the lights' photometric units into the
-/// run time's radiometric ones: 683 lm/W, the maximum (555 nm) by the SI
-/// definition of the candela, the factor Blender's glTF importer uses.
-pub const LUMENS_PER_WATT: f64 = 683.0;
+use view::{convert_camera, convert_light};
 
 /// Deepest node tree accepted: deeper is a malformed file (or a cycle,
 /// which the spec forbids), not a scene.
@@ -96,7 +94,7 @@ pub fn percent_decode(uri: &str) -> String {
 }
 
 /// The bytes of a `data:` URI (base64 only, as glTF writers make them).
-fn data_uri(uri: &str) -> Option<Result<Vec<u8>, String>> {
+pub(super) fn data_uri(uri: &str) -> Option<Result<Vec<u8>, String>> {
     let rest = uri.strip_prefix("data:")?;
     let Some((head, data)) = rest.split_once(',') else {
         return Some(Err("a data URI without a comma".to_owned()));
@@ -331,7 +329,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 /// Parses and validates a glTF file's bytes. `gltf-json` 1.4.1's check that
 /// a POSITION accessor has `min` and `max` indexes the accessors with the
 /// primitive's POSITION index unchecked (a panic on an index out of range,
-/// found by `tests/gltf.rs`'s mutations), so that index is checked first.
+/// found by the mutations in `tests/gltf/bad.rs`), so that index is checked first.
 fn parse(bytes: &[u8]) -> Result<gltf::Gltf, gltf::Error> {
     let unchecked = gltf::Gltf::from_slice_without_validation(bytes)?;
     let blob = unchecked.blob;
@@ -465,15 +463,15 @@ fn load_buffers(
 
 /// What was left out, counted for one warning each.
 #[derive(Default)]
-struct Skipped {
+pub(super) struct Skipped {
     points_lines: usize,
     skinned: usize,
     morphed: usize,
     orthographic: usize,
-    ranges: usize,
-    missing_texcoords: usize,
+    pub(super) ranges: usize,
+    pub(super) missing_texcoords: usize,
     /// Primitives whose texture coordinates were read (not a skip).
-    textured: usize,
+    pub(super) textured: usize,
 }
 
 impl Skipped {
@@ -514,454 +512,6 @@ impl Skipped {
     }
 }
 
-/// Adds one primitive, placed by `world`, to `raw` (errors name it).
-fn add_primitive(
-    raw: &mut Raw,
-    prim: &gltf::Primitive,
-    mesh: &gltf::Mesh,
-    world: &DMat4,
-    buffers: &Buffers,
-    skipped: &mut Skipped,
-) -> Result<(), String> {
-    let what = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
-    let mode = prim.mode();
-    if matches!(
-        mode,
-        Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip
-    ) {
-        skipped.points_lines += 1;
-        return Ok(());
-    }
-    let pos = prim
-        .get(&Semantic::Positions)
-        .ok_or_else(|| format!("{what} has no POSITION attribute"))?;
-    let positions = read_vectors::<3>(&pos, buffers, &format!("{what} POSITION"))?;
-    let n = positions.len();
-    let base = raw.positions.len();
-    if base + n > u32::MAX as usize {
-        return Err(format!(
-            "more than {} vertices in all; split the scene",
-            u32::MAX
-        ));
-    }
-    let same_count = |name: &str, k: usize| -> Result<(), String> {
-        if k == n {
-            Ok(())
-        } else {
-            Err(format!("{what} {name} has {k} elements, POSITION has {n}"))
-        }
-    };
-    raw.positions.extend(
-        positions
-            .iter()
-            .map(|&p| world.transform_point3(DVec3::from(p)).as_vec3().to_array()),
-    );
-    // Normals through the inverse transpose; a singular transform
-    // (flattened to a plane) has none to give.
-    let linear = DMat3::from_mat4(*world);
-    let det = linear.determinant();
-    let normal_matrix = (det != 0.0).then(|| linear.inverse().transpose());
-    let normals = match (prim.get(&Semantic::Normals), normal_matrix) {
-        (Some(a), Some(m)) => {
-            let v = read_vectors::<3>(&a, buffers, &format!("{what} NORMAL"))?;
-            same_count("NORMAL", v.len())?;
-            Some(
-                v.into_iter()
-                    .map(|v| (m * DVec3::from(v)).normalize_or_zero())
-                    .collect::<Vec<_>>(),
-            )
-        }
-        _ => None,
-    };
-    match normals {
-        Some(v) => {
-            for nrm in v {
-                raw.normals.push(nrm.as_vec3().to_array());
-                // A zero or non-finite normal counts as absent.
-                raw.has_normal
-                    .push(nrm.length_squared() > 0.5 && nrm.is_finite());
-            }
-        }
-        None => {
-            raw.normals.resize(base + n, [0.0; 3]);
-            raw.has_normal.resize(base + n, false);
-        }
-    }
-    // The texture coordinates the material's base colour texture reads,
-    // transformed (KHR_texture_transform) and flipped to `v` up.
-    let material = prim.material();
-    let info = material.pbr_metallic_roughness().base_color_texture();
-    let texcoords = match &info {
-        Some(info) => {
-            let transform = info.texture_transform();
-            let set = transform
-                .as_ref()
-                .and_then(|t| t.tex_coord())
-                .unwrap_or(info.tex_coord());
-            match prim.get(&Semantic::TexCoords(set)) {
-                Some(a) => {
-                    let v = read_vectors::<2>(&a, buffers, &format!("{what} TEXCOORD_{set}"))?;
-                    same_count(&format!("TEXCOORD_{set}"), v.len())?;
-                    let t = transform.map(|t| UvTransform {
-                        offset: t.offset().map(f64::from),
-                        rotation: f64::from(t.rotation()),
-                        scale: t.scale().map(f64::from),
-                    });
-                    Some(
-                        v.into_iter()
-                            .map(|uv| {
-                                let [u, v] = t.as_ref().map_or(uv, |t| t.apply(uv));
-                                [u as f32, (1.0 - v) as f32]
-                            })
-                            .collect::<Vec<_>>(),
-                    )
-                }
-                None => {
-                    skipped.missing_texcoords += 1;
-                    None
-                }
-            }
-        }
-        None => None,
-    };
-    match texcoords {
-        Some(v) => {
-            skipped.textured += 1;
-            raw.texcoords.extend(v);
-            raw.has_texcoord.resize(base + n, true);
-        }
-        None => {
-            raw.texcoords.resize(base + n, [0.0; 2]);
-            // Without a texture nothing reads the coordinates: none are
-            // missing (the scene has texture coordinates when any
-            // primitive's texture needs them).
-            raw.has_texcoord.resize(base + n, info.is_none());
-        }
-    }
-    let indices: Vec<u32> = match prim.indices() {
-        Some(a) => read_indices(&a, buffers, n, &format!("{what} indices"))?,
-        None => (0..n as u32).collect(),
-    };
-    // Triangles by mode (spec 3.7.2.1), a mirror reversing each.
-    let flip = det < 0.0;
-    let material_id = material.index();
-    let mut push = |a: u32, b: u32, c: u32| {
-        let t = if flip { [a, c, b] } else { [a, b, c] };
-        raw.triangles.push(t.map(|i| (base + i as usize) as u32));
-        raw.tri_material.push(material_id);
-    };
-    match mode {
-        Mode::Triangles => {
-            if !indices.len().is_multiple_of(3) {
-                return Err(format!(
-                    "{what}: {} indices do not make whole triangles",
-                    indices.len()
-                ));
-            }
-            for t in indices.chunks_exact(3) {
-                push(t[0], t[1], t[2]);
-            }
-        }
-        Mode::TriangleStrip => {
-            for i in 0..indices.len().saturating_sub(2) {
-                let (a, b, c) = (indices[i], indices[i + 1], indices[i + 2]);
-                if i % 2 == 0 {
-                    push(a, b, c);
-                } else {
-                    push(b, a, c);
-                }
-            }
-        }
-        Mode::TriangleFan => {
-            for i in 1..indices.len().saturating_sub(1) {
-                push(indices[i], indices[i + 1], indices[0]);
-            }
-        }
-        _ => {}
-    }
-    Ok(())
-}
-
-/// `KHR_texture_transform`: `uv' = T · R · S · uv`, with `R` turning the
-/// coordinates counter-clockwise by `rotation` as the extension's GLSL
-/// (`u' = cos·u + sin·v`, `v' = −sin·u + cos·v` in `v`-down texture space).
-struct UvTransform {
-    offset: [f64; 2],
-    rotation: f64,
-    scale: [f64; 2],
-}
-
-impl UvTransform {
-    fn apply(&self, [u, v]: [f64; 2]) -> [f64; 2] {
-        let (su, sv) = (u * self.scale[0], v * self.scale[1]);
-        let (s, c) = self.rotation.sin_cos();
-        [
-            c * su + s * sv + self.offset[0],
-            -s * su + c * sv + self.offset[1],
-        ]
-    }
-}
-
-/// Each material's name, made unique (`name (material 3)` for a repeat;
-/// `material 3` without one): the camera-and-lights file's emission map
-/// and the reports name materials.
-fn material_names(doc: &gltf::Document) -> Vec<String> {
-    let mut seen = std::collections::HashSet::new();
-    doc.materials()
-        .map(|m| {
-            let i = m.index().unwrap_or(0);
-            let name = match m.name() {
-                Some(n) if !n.is_empty() => n.to_owned(),
-                _ => format!("material {i}"),
-            };
-            if seen.insert(name.clone()) {
-                name
-            } else {
-                let n = format!("{name} (material {i})");
-                seen.insert(n.clone());
-                n
-            }
-        })
-        .collect()
-}
-
-/// A texture's image and wrap modes. The image's JSON is read directly:
-/// `gltf` 1.4.1's `Image::source` unwraps a `mimeType` the spec requires
-/// with a buffer view but its validation does not check (a panic, found by
-/// `tests/gltf.rs`'s mutations).
-fn texture_of(
-    doc: &gltf::Document,
-    tex: &gltf::Texture,
-    dir: &Path,
-    buffers: &Buffers,
-) -> Result<DiffuseTexture, String> {
-    let i = doc.as_json().textures[tex.index()].source.value();
-    let doc_image = doc
-        .as_json()
-        .images
-        .get(i)
-        .ok_or_else(|| format!("image {i} does not exist"))?;
-    let image = match (&doc_image.buffer_view, &doc_image.uri) {
-        (Some(v), _) => {
-            let v = v.value();
-            let view = doc
-                .views()
-                .nth(v)
-                .ok_or_else(|| format!("image {i}: bufferView {v} does not exist"))?;
-            let b = buffers
-                .0
-                .get(view.buffer().index())
-                .ok_or_else(|| format!("image {i}: bufferView {v} names a missing buffer"))?;
-            let end = view.offset() as u64 + view.length() as u64;
-            if end > b.len() as u64 {
-                return Err(format!(
-                    "image {i}: bufferView {v} reaches byte {end} of a buffer of {}",
-                    b.len()
-                ));
-            }
-            ImageSource::Embedded {
-                label: format!("image {i} (bufferView {v})"),
-                bytes: Arc::from(&b[view.offset()..end as usize]),
-            }
-        }
-        (None, Some(uri)) => match data_uri(uri) {
-            Some(bytes) => ImageSource::Embedded {
-                label: format!("image {i} (data URI)"),
-                bytes: Arc::from(bytes.map_err(|e| format!("image {i}: {e}"))?),
-            },
-            None => ImageSource::File(dir.join(percent_decode(uri))),
-        },
-        (None, None) => return Err(format!("image {i} has neither a uri nor a bufferView")),
-    };
-    let s = tex.sampler();
-    let wrap = |w: gltf::texture::WrappingMode| match w {
-        gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
-        gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
-        gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
-    };
-    Ok(DiffuseTexture {
-        image,
-        wrap: [wrap(s.wrap_s()), wrap(s.wrap_t())],
-    })
-}
-
-/// The diffuse material (module doc) with what the model leaves out.
-fn resolve_material(
-    doc: &gltf::Document,
-    m: &gltf::Material,
-    name: &str,
-    dir: &Path,
-    buffers: &Buffers,
-) -> Result<(Material, Vec<String>), String> {
-    let mut notes = Vec::new();
-    let pbr = m.pbr_metallic_roughness();
-    let [r, g, b, _] = pbr.base_color_factor();
-    for (key, v) in [
-        ("baseColorFactor", [r, g, b]),
-        ("emissiveFactor", m.emissive_factor()),
-    ] {
-        if v.iter().any(|c| !c.is_finite() || *c < 0.0) {
-            return Err(format!(
-                "{key} {v:?} has a negative or non-finite component"
-            ));
-        }
-    }
-    // Metalness: the factor times the texture's mean blue (linear data).
-    let mut metallic = f64::from(pbr.metallic_factor());
-    if let Some(info) = pbr.metallic_roughness_texture() {
-        let t = texture_of(doc, &info.texture(), dir, buffers)?;
-        let img = t
-            .decode()
-            .map_err(|e| format!("metallicRoughnessTexture: {e}"))?;
-        let rgb = img.to_rgb8();
-        let px = rgb.pixels().len().max(1) as f64;
-        let blue: f64 = rgb.pixels().map(|p| f64::from(p[2])).sum::<f64>() / 255.0;
-        metallic *= blue / px;
-    }
-    if !metallic.is_finite() || !(0.0..=1.0).contains(&metallic) {
-        return Err(format!("metallic {metallic} lies outside [0, 1]"));
-    }
-    if metallic > 0.0 {
-        notes.push(format!(
-            "shows metal as diffuse albedo × (1 − metallic) = × {:.3}",
-            1.0 - metallic
-        ));
-    }
-    let kd = [r, g, b].map(|c| (f64::from(c) * (1.0 - metallic)) as f32);
-    let texture = match pbr.base_color_texture() {
-        Some(info) => {
-            let t = texture_of(doc, &info.texture(), dir, buffers)?;
-            let img = t.decode().map_err(|e| format!("baseColorTexture: {e}"))?;
-            Some((
-                texture_mean_linear(&img)
-                    .map_err(|e| format!("baseColorTexture {}: {e}", t.describe()))?,
-                t,
-            ))
-        }
-        None => None,
-    };
-    let albedo = match &texture {
-        Some((mean, _)) => [0, 1, 2].map(|k| (f64::from(kd[k]) * mean[k]) as f32),
-        None => kd,
-    };
-    let strength = f64::from(m.emissive_strength().unwrap_or(1.0));
-    if !strength.is_finite() || strength < 0.0 {
-        return Err(format!(
-            "emissive_strength {strength} is negative or not finite"
-        ));
-    }
-    let mut radiance = m.emissive_factor().map(|c| f64::from(c) * strength);
-    if let Some(info) = m.emissive_texture() {
-        let t = texture_of(doc, &info.texture(), dir, buffers)?;
-        let img = t.decode().map_err(|e| format!("emissiveTexture: {e}"))?;
-        let mean = texture_mean_linear(&img)
-            .map_err(|e| format!("emissiveTexture {}: {e}", t.describe()))?;
-        for k in 0..3 {
-            radiance[k] *= mean[k];
-        }
-    }
-    let emission = radiance.map(|l| (std::f64::consts::PI * l) as f32);
-    for ext in ["KHR_materials_pbrSpecularGlossiness", "KHR_materials_unlit"] {
-        if m.extensions().is_some_and(|e| e.contains_key(ext)) {
-            notes.push(format!(
-                "does not read {ext}: the metallic-roughness values (or their defaults) are used"
-            ));
-        }
-    }
-    if m.normal_texture().is_some() {
-        notes.push("ignores the normal map".to_owned());
-    }
-    if m.occlusion_texture().is_some() {
-        notes.push("ignores the occlusion map (the bake computes occlusion)".to_owned());
-    }
-    if m.transmission()
-        .is_some_and(|t| t.transmission_factor() > 0.0)
-    {
-        notes.push("shows transmission as opaque".to_owned());
-    }
-    match m.alpha_mode() {
-        gltf::material::AlphaMode::Opaque => {}
-        gltf::material::AlphaMode::Mask => notes.push("ignores alpha masking (opaque)".to_owned()),
-        gltf::material::AlphaMode::Blend => {
-            notes.push("ignores alpha blending (opaque)".to_owned())
-        }
-    }
-    if pbr.roughness_factor() < 0.5 && metallic < 1.0 {
-        notes.push(format!(
-            "shows a glossy surface (roughness {:.2}) as matte",
-            pbr.roughness_factor()
-        ));
-    }
-    Ok((
-        Material {
-            name: name.to_owned(),
-            albedo,
-            emission,
-            kd,
-            diffuse_texture: texture.map(|(_, t)| t),
-            double_sided: m.double_sided(),
-        },
-        notes,
-    ))
-}
-
-/// A `KHR_lights_punctual` light at its node (module doc for units).
-fn convert_light(
-    l: &gltf::khr_lights_punctual::Light,
-    world: &DMat4,
-    skipped: &mut Skipped,
-) -> Light {
-    if l.range().is_some() {
-        skipped.ranges += 1;
-    }
-    let power = l
-        .color()
-        .map(|c| (f64::from(c) * f64::from(l.intensity()) / LUMENS_PER_WATT) as f32);
-    let position = world.transform_point3(DVec3::ZERO).as_vec3().to_array();
-    let direction = world
-        .transform_vector3(DVec3::NEG_Z)
-        .normalize_or_zero()
-        .as_vec3()
-        .to_array();
-    use gltf::khr_lights_punctual::Kind;
-    match l.kind() {
-        Kind::Directional => Light::Directional {
-            direction,
-            irradiance: power,
-        },
-        Kind::Point => Light::Point {
-            position,
-            intensity: power,
-        },
-        Kind::Spot {
-            inner_cone_angle,
-            outer_cone_angle,
-        } => Light::Spot {
-            position,
-            direction,
-            intensity: power,
-            cone_angle_deg: outer_cone_angle.to_degrees(),
-            beam_angle_deg: inner_cone_angle
-                .to_degrees()
-                .min(outer_cone_angle.to_degrees()),
-        },
-    }
-}
-
-/// A perspective camera at its node: looking down `−z`, `+y` up; the
-/// target a unit ahead (moved once the scene's size is known).
-fn convert_camera(yfov: f32, world: &DMat4) -> Camera {
-    let eye = world.transform_point3(DVec3::ZERO);
-    let forward = world.transform_vector3(DVec3::NEG_Z).normalize_or_zero();
-    let up = world.transform_vector3(DVec3::Y).normalize_or_zero();
-    Camera {
-        position: eye.as_vec3().to_array(),
-        target: (eye + forward).as_vec3().to_array(),
-        up: up.as_vec3().to_array(),
-        fov_y_deg: yfov.to_degrees(),
-    }
-}
-
 /// The files a glTF file names (buffers and images that are not data
 /// URIs), resolved beside it, in the file's order.
 pub fn named_files(path: &Path, json: &serde_json::Value) -> Vec<PathBuf> {
@@ -991,21 +541,6 @@ mod tests {
         assert_eq!(percent_decode("a%2"), "a%2");
         assert_eq!(percent_decode("%zz"), "%zz");
         assert_eq!(percent_decode("plain.bin"), "plain.bin");
-    }
-
-    #[test]
-    fn texture_transform_follows_the_extensions_example() {
-        // The extension's example: offset [0, 1], rotation π/2, scale 0.5
-        // shows the lower left quadrant turned: uv (1, 0) lands at (0, 0.5).
-        let t = UvTransform {
-            offset: [0.0, 1.0],
-            rotation: std::f64::consts::FRAC_PI_2,
-            scale: [0.5, 0.5],
-        };
-        let [u, v] = t.apply([1.0, 0.0]);
-        assert!(u.abs() < 1e-12 && (v - 0.5).abs() < 1e-12, "{u} {v}");
-        let [u, v] = t.apply([0.0, 0.0]);
-        assert!(u.abs() < 1e-12 && (v - 1.0).abs() < 1e-12);
     }
 
     #[test]
