@@ -2,7 +2,7 @@
 //! a `.gltf`, which must return a scene or an error and never panic,
 //! whatever the bytes. The same bytes are tried both ways: as a binary
 //! file (the GLB container's chunk checks) and as JSON text (the document's
-//! validation, the accessors' bounds). `tests/gltf.rs` runs seeded
+//! validation, the accessors' bounds). `tests/gltf/bad.rs` runs seeded
 //! mutations of valid files in the test suite; this target explores past
 //! them (`cargo fuzz run gltf_loader`).
 
