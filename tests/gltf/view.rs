@@ -154,16 +154,19 @@ fn view_and_render_use_the_files_camera_and_lights_and_a_json_overrides_them() {
     // The voxel size in metres, the unit glTF fixes.
     assert!(said.contains(" m, grid "), "{said}");
     let png = dir.join("a.png");
-    let said = run(&[
-        "render",
-        rad.to_str().unwrap(),
-        "-o",
-        png.to_str().unwrap(),
-        "--width",
-        "64",
-        "--height",
-        "48",
-    ]);
+    let render = || {
+        run(&[
+            "render",
+            rad.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--width",
+            "64",
+            "--height",
+            "48",
+        ])
+    };
+    let said = render();
     assert!(
         said.contains("the camera and 1 light(s) of room.glb"),
         "{said}"
@@ -175,16 +178,7 @@ fn view_and_render_use_the_files_camera_and_lights_and_a_json_overrides_them() {
             "lights": [{"type": "point", "position": [1, 1.5, 1], "intensity": [1, 1, 1]}], "units": "m"}"#,
     )
     .unwrap();
-    let said = run(&[
-        "render",
-        rad.to_str().unwrap(),
-        "-o",
-        png.to_str().unwrap(),
-        "--width",
-        "64",
-        "--height",
-        "48",
-    ]);
+    let said = render();
     assert!(!said.contains("light(s) of room.glb"), "{said}");
     // The Mitsuba export takes it too: the room's meshes and its light.
     let said = run(&[
