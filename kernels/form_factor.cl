@@ -3,10 +3,10 @@
 // (the host derives both factors, so reciprocity is exact up to f32
 // rounding) and an info word `rule << 24 | rays cast`.
 //
-// The method and its reasons are in src/form_factor.rs (module doc); the
+// The method and its reasons are in src/bake/form_factor/contour.rs (module doc); the
 // CPU reference is `form_factor::cpu_pair`, which follows this file step by
 // step in f64, and the BVH layout and traversal are `bvh::Bvh` in
-// src/bvh.rs. In short, for each pair:
+// src/core/bvh.rs. In short, for each pair:
 //   1. back-facing test both ways on the centres (f32, same operations as
 //      the reference);
 //   2. emitter = the smaller patch; an m x m Gauss-Legendre rule on it, m
@@ -36,7 +36,7 @@
 // Most certificate checks per pair (CERT_ATTEMPTS).
 #define CERT_ATTEMPTS 3u
 
-// Layouts shared with src/form_factor.rs (ClPatch) and src/bvh.rs (Node,
+// Layouts shared with src/bake/form_factor/contour.rs (ClPatch) and src/core/bvh.rs (Node,
 // Tri, Cert).
 typedef struct {
     float c[3]; float h;

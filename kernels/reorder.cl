@@ -1,5 +1,5 @@
 // Squared Euclidean distances between the rows of a feature matrix, for the
-// greedy nearest-neighbour reordering (src/reorder.rs). The CPU reference is
+// greedy nearest-neighbour reordering (src/bake/reorder.rs). The CPU reference is
 // `reorder::cpu_distances`, which computes the same quantity in f64.
 //
 // X is n x d, row-major: row i is the feature vector of patch i (its row of

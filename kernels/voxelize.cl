@@ -6,7 +6,7 @@
 // [j, j+1] x [k, k+1] and every voxel boundary is an integer, exactly
 // representable in f32. The host reduces the pieces into patches; this file
 // only measures. The CPU reference is `voxelize::cpu_pieces` in
-// src/voxelize.rs, which follows this code step by step in f64.
+// src/bake/voxelize/mod.rs, which follows this code step by step in f64.
 //
 // Two kernels share one walk over candidate voxels: `count_pieces` counts
 // the voxels each triangle overlaps, the host turns the counts into offsets
@@ -16,7 +16,7 @@
 // Half size of the box used by the overlap test: a little more than 0.5 so
 // that the test stays conservative under f32 rounding of the inputs (grid
 // coordinates up to ~4096 carry absolute errors of ~2.5e-4 voxels). Clipping
-// decides the actual area. Must equal `SAT_HALF` in src/voxelize.rs.
+// decides the actual area. Must equal `SAT_HALF` in src/bake/voxelize/mod.rs.
 #define SAT_HALF 0.5005f
 
 // The clipped polygon has at most 3 + 6 vertices.

@@ -1,4 +1,4 @@
-//! Form factors with visibility (`src/form_factor.rs`, `kernels/form_factor.cl`):
+//! Form factors with visibility (`src/bake/form_factor/contour.rs`, `kernels/form_factor.cl`):
 //! analytic view factors from Howell's catalog, occlusion with a known
 //! answer, the invariants of DESIGN.md section 2, OpenCL against the f64
 //! CPU reference, determinism, and what the skipping rules save.

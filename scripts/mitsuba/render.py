@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Reference images from Mitsuba 3 for a scene written by
-`radiosity export-mitsuba` (see src/mitsuba.rs for the translation).
+`radiosity export-mitsuba` (see src/mitsuba/export.rs for the translation).
 
 Renders, each as two independent halves (seeds 1 and 2, spp/2 samples per
 pixel each) so that the noise of their mean can be stated:

@@ -1,5 +1,5 @@
 //! From radiance to pixels, the same on the CPU and in the GL shader
-//! (`glsl/tonemap.glsl`): exposure, a filmic curve, the sRGB transfer
+//! (`glsl/tonemap.frag`): exposure, a filmic curve, the sRGB transfer
 //! function.
 //!
 //! - **Exposure** `k`: given, or automatic: `k = 0.18 / L̄` with `L̄` the

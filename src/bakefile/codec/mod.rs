@@ -157,7 +157,7 @@
 //! `H = T̃ · B0` over sample lights through the f64 gather (`h_error`: no
 //! decoded n × n copy), and keeps the cheapest whose error is within the
 //! bound. `measure` adds the per-entry and Frobenius errors of a decoded
-//! matrix; `report_rows` and `report_table` tabulate errors, bytes and
+//! matrix; `bench::compression::report_rows` and `report_table` tabulate errors, bytes and
 //! times for every reordering and codec. `synthetic` builds test
 //! matrices with the structure of real ones.
 
