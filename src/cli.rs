@@ -473,7 +473,7 @@ pub(crate) struct ViewArgs {
     /// cpu): drop the columns of least weight whose bound on H's L1 norm
     /// sums to at most this fraction (0..1; 0: exact, only zero columns
     /// skipped). The default 0.001 added 0.09–0.36 % RMS to H on the
-    /// bundled scenes and Sponza, 4–38 % of the codec's own error (README).
+    /// bundled scenes and Sponza, 4–38 % of the codec's own error (`docs/measurements/runtime-cpu.md`).
     #[arg(long, value_name = "EPS", default_value_t = radiosity::runtime::VIEWER_CULL, allow_negative_numbers = true)]
     pub(crate) cull: f64,
     /// Target patch count when baking a scene.

@@ -91,7 +91,7 @@ fn scripted_frames_in_a_window_show_what_the_headless_renderer_draws() {
                 // Exact gathers, as the headless GL renderer's: on
                 // llvmpipe the viewer's patch light runs on the CPU, whose
                 // default culling of negligible columns moves a pixel by
-                // 2 / 255 here (README, "Culling negligible columns").
+                // 2 / 255 here (`docs/measurements/runtime-cpu.md`, "Culling negligible columns").
                 "--cull",
                 "0",
             ],

@@ -1,7 +1,7 @@
 //! Opening a bake for the run time: the bake file, the scene it was baked
 //! from (for shadow rays, textures and the surface map's triangles), and
 //! the check that the two belong together. This is what an application
-//! embedding the run time calls first (README, "Using the run time from
+//! embedding the run time calls first (`docs/library.md`, "Using the run time from
 //! Rust"; `examples/embed.rs`); `radiosity render` and `view` call it too.
 //!
 //! The scene is found where the bake file says (its stored path, relative
