@@ -3,7 +3,7 @@
 // the three channels, reading F once, then H += y and the next pass's
 // input x' = rho o y. k passes give k bounces; repeated until the error of
 // the compressed gather is reached, they are the Jacobi iteration of the
-// infinite-bounce limit (DESIGN.md section 3's baseline).
+// infinite-bounce limit (docs/design.md section 3's baseline).
 //
 // One group of 32 invocations per row of F (8 rows a work-group): the row
 // is read as 16-byte words, consecutive invocations on consecutive words;

@@ -1,7 +1,7 @@
 //! # radiosity: real-time radiosity from a compressed multi-bounce transfer matrix
 //!
 //! Global illumination for static diffuse scenes under dynamic lights, after
-//! the 2017 thesis this project follows (see `../shared/DESIGN.md`, which fixes
+//! the 2017 thesis this project follows (see `docs/design.md`, which fixes
 //! the mathematics and the names used in every module).
 //!
 //! ## The two phases and their contract

@@ -1,6 +1,6 @@
 //! An independent reference for indirect light: Monte Carlo path tracing on
 //! the original triangles, with no patches, form factors, transfer matrix
-//! or codec involved (DESIGN.md section 3, measure 4, in its in-project
+//! or codec involved (docs/design.md section 3, measure 4, in its in-project
 //! form; the Mitsuba 3 comparison of the benchmark issue is the external
 //! one). It estimates the indirect irradiance `H(x)` — the light arriving
 //! at `x` from surfaces, emitted or reflected, as `H = T · B0` defines it —

@@ -1,6 +1,6 @@
 //! Form factors with visibility (`src/bake/form_factor/contour.rs`, `kernels/form_factor.cl`):
 //! analytic view factors from Howell's catalog, occlusion with a known
-//! answer, the invariants of DESIGN.md section 2, OpenCL against the f64
+//! answer, the invariants of docs/design.md section 2, OpenCL against the f64
 //! CPU reference, determinism, and what the skipping rules save.
 //!
 //! Plate-level factors are `Σ_{i∈A} A_i Σ_{j∈B} F_ij / Σ_{i∈A} A_i` over
@@ -140,7 +140,7 @@ fn run_on(
         .expect("form factors")
 }
 
-/// Checks every invariant of DESIGN.md section 2 on a result: F ≥ 0,
+/// Checks every invariant of docs/design.md section 2 on a result: F ≥ 0,
 /// F_ii = 0, reciprocity to 1e-5 relative on every pair (f32 storage of
 /// G/A_i and G/A_j: at most 2 f32 roundings, 1.2e-7), row sums ≤ 1 + 1e-6
 /// (the correction threshold, plus f32 rounding of the corrected row's

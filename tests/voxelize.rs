@@ -1,5 +1,5 @@
 //! Voxel simplification: OpenCL against the f64 CPU reference, and the
-//! geometric promises of DESIGN.md step 2 (patches keep their geometry's
+//! geometric promises of docs/design.md step 2 (patches keep their geometry's
 //! area and plane), on the bundled Cornell box, Sponza and small synthetic
 //! scenes whose answers are known exactly.
 
@@ -136,7 +136,7 @@ fn plate_patches(v: &Voxelization, normal: [f64; 3]) -> Vec<&radiosity::core::pa
 
 /// Two parallel plates at an angle to the grid, facing each other at
 /// distance 0.5: their patches keep each plate's area and lie in its plane,
-/// so the distance between the plates is kept (DESIGN.md step 2).
+/// so the distance between the plates is kept (docs/design.md step 2).
 fn check_tilted_plates(n: [f64; 3], backend: &Backend, tol: f64) {
     let n = norm(n);
     let helper = if n[0].abs() < 0.9 {

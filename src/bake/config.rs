@@ -33,7 +33,7 @@ pub enum CodecChoice {
 }
 
 /// The default bound on the compression error: the relative RMS error of
-/// `H = T̃ · B0` over the error lights (DESIGN.md's 2 %).
+/// `H = T̃ · B0` over the error lights (docs/design.md's 2 %).
 pub const DEFAULT_MAX_ERROR: f64 = 0.02;
 
 impl Default for CodecChoice {

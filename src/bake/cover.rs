@@ -1,4 +1,4 @@
-//! Covered geometry (DESIGN.md bake step 2; the voxelizer's module doc,
+//! Covered geometry (docs/design.md bake step 2; the voxelizer's module doc,
 //! "Covered geometry"): the one rule for whether a point of a surface can
 //! be seen at all. A point is covered when the first surface in front of it
 //! along its normal is the back of another surface within

@@ -1,4 +1,4 @@
-//! The mesh-to-patch map (DESIGN.md section 1, bake step 7): for every
+//! The mesh-to-patch map (docs/design.md section 1, bake step 7): for every
 //! vertex of the original mesh, up to four patches and weights (≥ 0,
 //! summing to 1) from which the run time interpolates the vertex's indirect
 //! irradiance `H` (run-time step 4).

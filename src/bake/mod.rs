@@ -1,5 +1,5 @@
 //! The bake pipeline as one call: validated options in, a report (and the
-//! `.rad` file) out. Stages (DESIGN.md section 1, bake steps 1–8): load →
+//! `.rad` file) out. Stages (docs/design.md section 1, bake steps 1–8): load →
 //! voxelize → form factors → transfer → reorder → encode → mesh-to-patch
 //! map → write. The compression error of the bake is measured on the way:
 //! `H = T̃ · B0` against the exact `T · B0` over seeded random lights

@@ -1,4 +1,4 @@
-//! Reordering of patches before compression (DESIGN.md section 1, bake step
+//! Reordering of patches before compression (docs/design.md section 1, bake step
 //! 5): a symmetric permutation `P T Pᵀ` of the transfer matrix's rows and
 //! columns that puts similar rows (and so similar columns) next to each
 //! other, so that the 4×4 blocks of the block-compressed texture

@@ -1,4 +1,4 @@
-//! The multi-bounce transfer matrix (DESIGN.md section 2, bake step 4):
+//! The multi-bounce transfer matrix (docs/design.md section 2, bake step 4):
 //! from the form factors `F` and the patch albedos `ρ`, per colour channel,
 //!
 //! - `T_k = Σ_{h=1..k} F (diag(ρ) F)^{h−1}` for `k` bounces, and

@@ -1,5 +1,5 @@
 //! The bake file (`.rad`): everything the run time needs from one bake, in
-//! one versioned, checksummed container (DESIGN.md section 1, bake step 8,
+//! one versioned, checksummed container (docs/design.md section 1, bake step 8,
 //! and section 4: "a truncated, corrupt or newer-version file is a clear
 //! error, never a panic or garbage").
 //!
@@ -215,7 +215,7 @@ pub fn section_what(t: [u8; 4]) -> &'static str {
 
 /// One patch as stored: the f32 rounding of [`crate::core::patch::Patch`]'s
 /// centre `c_i`, unit normal `N_i`, area `A_i`, albedo `ρ_i` and emission
-/// `E_i` (DESIGN.md section 2), in matrix order.
+/// `E_i` (docs/design.md section 2), in matrix order.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct PatchRecord {
     pub centre: [f32; 3],
@@ -296,7 +296,7 @@ pub struct BakeFile {
     /// The patches, in matrix order (patch `i` is row and column `i` of `T`
     /// before reordering).
     pub patches: Vec<PatchRecord>,
-    /// The reordering (DESIGN.md bake step 5): row and column `r` of the
+    /// The reordering (docs/design.md bake step 5): row and column `r` of the
     /// codec's matrix hold patch `permutation[r]`. A permutation of `0..n`.
     pub permutation: Vec<u32>,
     /// The compressed transfer matrix.

@@ -1,6 +1,6 @@
 //! The per-pixel surface map and the patches' sample points: what the run
 //! time needs to light patches from their real surfaces and to carry `H`
-//! from the patches to any point of the original triangles (DESIGN.md run
+//! from the patches to any point of the original triangles (docs/design.md run
 //! time, steps 2 and 4).
 //!
 //! **Sample points** (`PSMP`): per patch, [`SAMPLES_PER_PATCH`] points on

@@ -1,5 +1,5 @@
 //! `radiosity bench accuracy`: a bake's patch irradiance against an
-//! independent reference (DESIGN.md section 3, measure 4): the Monte Carlo
+//! independent reference (docs/design.md section 3, measure 4): the Monte Carlo
 //! path tracer of [`crate::reference`] on the original triangles.
 //!
 //! For every patch, the reference is the mean indirect irradiance over the

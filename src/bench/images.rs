@@ -1,4 +1,4 @@
-//! Image errors of the sweep against Mitsuba 3 (DESIGN.md section 3,
+//! Image errors of the sweep against Mitsuba 3 (docs/design.md section 3,
 //! measure 4): the run time's final and indirect views of a scene's camera
 //! and lights against the path tracer's, which include everything the
 //! patches simplify (voxels, the surface map, bounces, the codec).

@@ -1,7 +1,7 @@
 //! Direct light on patches, on the CPU: the irradiance `D_j` that the
 //! lights of a scene's camera/lights file put on each patch, with shadows
 //! from the original triangles, and the exitance `B0 = ρ ∘ D + E` that the
-//! transfer matrix gathers (DESIGN.md section 2). The run-time renderer
+//! transfer matrix gathers (docs/design.md section 2). The run-time renderer
 //! computes `D` from shadow maps on the GPU; this is the reference it will
 //! be compared with, and the source of the seeded random lights that the
 //! compression report measures `H = T̃ · B0` over.

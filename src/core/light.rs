@@ -1,4 +1,4 @@
-//! The one definition of each light's irradiance at a point (DESIGN.md run
+//! The one definition of each light's irradiance at a point (docs/design.md run
 //! time step 2), used by the CPU run time, the bake's error lights, the GLSL
 //! shaders (`glsl/light.glsl` mirrors [`incident`] line by line) and the
 //! path-tracer export.

@@ -1,4 +1,4 @@
-//! Patches, the unit both phases share (DESIGN.md section 2): a patch is
+//! Patches, the unit both phases share (docs/design.md section 2): a patch is
 //! the simplified surface of one voxel facing one of the six axis
 //! [`Direction`]s, with a centre, a unit normal, an area, an albedo and an
 //! emission. [`Grid`] is the voxel grid the patches come from, and

@@ -1,4 +1,4 @@
-//! A permutation of patches: the reordering (DESIGN.md bake step 5) that the
+//! A permutation of patches: the reordering (docs/design.md bake step 5) that the
 //! bake applies to rows and columns of the transfer matrix and the run time
 //! applies once, at load, to the per-patch data.
 

@@ -1,6 +1,6 @@
 //! The camera-and-lights file that accompanies every scene (`NAME.json`
 //! next to `NAME.obj`): where the viewer starts and which dynamic lights the
-//! run time evaluates each frame (DESIGN.md, run time step 1).
+//! run time evaluates each frame (docs/design.md, run time step 1).
 //!
 //! The format is JSON, read with `deny_unknown_fields` so a misspelt key is
 //! an error instead of a silently ignored setting, and validated after

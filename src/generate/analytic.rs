@@ -1,5 +1,5 @@
 //! Configurations with analytic view factors (the first measure of
-//! DESIGN.md section 3) and the closed cube of the furnace test, all in
+//! docs/design.md section 3) and the closed cube of the furnace test, all in
 //! metres, plus the catalog formulas themselves. Formulas: J. R. Howell,
 //! "A Catalog of Radiation Heat Transfer Configuration Factors"
 //! (configurations C-11 and C-14, and the entry for coaxial parallel disks

@@ -1,7 +1,7 @@
 //! Deterministic generators for the bundled test scenes, written as
 //! OBJ + MTL plus a camera-and-lights JSON file (`crate::core::scene_config`).
 //!
-//! The scenes serve the measures of DESIGN.md section 3: the Cornell box
+//! The scenes serve the measures of docs/design.md section 3: the Cornell box
 //! from its published data, analytic configurations with known view
 //! factors (Howell's catalog C-11, C-14, coaxial disks), a closed cube for
 //! the furnace test, and an architectural interior at the thesis's scale.

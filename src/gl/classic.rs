@@ -1,5 +1,5 @@
 //! Classic radiosity on the GPU (`glsl/classic.comp`): the baseline the
-//! thesis's compressed gather is measured against (DESIGN.md section 3),
+//! thesis's compressed gather is measured against (docs/design.md section 3),
 //! on the same device. A pass reads the dense f32 form-factor matrix `F`
 //! (matrix order, as the run time's patches) once and updates the three
 //! channels: `y_c = F x_c`, `H += y`, `x = ρ ∘ y`; k passes are k bounces,

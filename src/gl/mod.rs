@@ -1,4 +1,4 @@
-//! The OpenGL renderer (DESIGN.md run time on the GPU), one file per pass
+//! The OpenGL renderer (docs/design.md run time on the GPU), one file per pass
 //! paired with its shader in `glsl/`, each tested against the CPU run time
 //! ([`crate::runtime`]) that defines what it computes. Shaders are real
 //! files embedded with `include_str!`; the `#version` line (and compile-time

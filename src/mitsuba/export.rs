@@ -1,7 +1,7 @@
 //! The export: a scene with its camera and lights written as a
 //! Mitsuba 3 scene (XML, one OBJ per material, one linear PFM texture per
 //! textured material), for the independent reference images of
-//! `scripts/mitsuba-reference` (DESIGN.md section 3, measure 4).
+//! `scripts/mitsuba-reference` (docs/design.md section 3, measure 4).
 //!
 //! Everything is translated from the one definition each quantity has in
 //! this project, so that the path tracer and the run time see the same

@@ -1,4 +1,4 @@
-//! Mitsuba 3 as the independent reference (DESIGN.md section 3, measure 4):
+//! Mitsuba 3 as the independent reference (docs/design.md section 3, measure 4):
 //! [`export()`] writes a scene with its camera, lights and emission scales as
 //! a Mitsuba scene, `scripts/mitsuba-reference` renders it (its own Python
 //! environment, cached by a hash of the export), and [`mod@reference`] reads

@@ -1,4 +1,4 @@
-//! Direct light on patches per frame (DESIGN.md run time step 2): `D_j` is
+//! Direct light on patches per frame (docs/design.md run time step 2): `D_j` is
 //! the mean irradiance over the patch's sample points on its real triangle
 //! pieces ([`crate::bakefile::surface`]), each shadowed by a ray against the
 //! original triangles ([`crate::core::direct::DirectLight::at_points_each`],

@@ -1,4 +1,4 @@
-//! The gather `H = T̃ · B0` straight from the compressed matrix (DESIGN.md
+//! The gather `H = T̃ · B0` straight from the compressed matrix (docs/design.md
 //! run time step 3), on the CPU: decode fused with the multiply-add, no
 //! decoded matrix in memory, multithreaded over rows of tiles, vectorised
 //! (AVX-512 where the CPU has it, else AVX2 with FMA, else a portable path,

@@ -1,5 +1,5 @@
 //! The run time on the CPU: a baked scene lit by lights that move, with
-//! indirect light that follows (DESIGN.md, run time). It is the reference
+//! indirect light that follows (docs/design.md, run time). It is the reference
 //! the GL renderer is tested against and the fallback where GL is too slow.
 //! It imports the core and the bake file's contract, never a bake stage.
 //!

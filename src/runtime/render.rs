@@ -5,7 +5,7 @@
 //! ([`super::texture`]), then exposure, tone mapping and sRGB
 //! ([`super::tonemap`]).
 //!
-//! The views are radiances (DESIGN.md section 2): final `L = ρ/π · (D + H) +
+//! The views are radiances (docs/design.md section 2): final `L = ρ/π · (D + H) +
 //! Le`, direct `ρ/π · D + Le`, indirect `ρ/π · H`, and patches (`ρ_j/π ·
 //! H_j` of the patch that stands for the pixel's surface, flat per patch).
 //! `Le = s_m Ke / π` (`Ke` is an exitance). Surfaces seen from behind (the

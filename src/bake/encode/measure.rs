@@ -1,4 +1,4 @@
-//! Error measures of a compressed matrix (DESIGN.md section 3, measure 3)
+//! Error measures of a compressed matrix (docs/design.md section 3, measure 3)
 //! and the choice of the cheapest codec setting under an error bound.
 
 use super::{encode, EncodeError};
@@ -21,7 +21,7 @@ pub enum ChooseError {
     Encode(#[from] EncodeError),
 }
 
-/// Errors of a decoded matrix against the original (DESIGN.md section 3,
+/// Errors of a decoded matrix against the original (docs/design.md section 3,
 /// measure 3). Entry errors are over all `3 n²` entries (three channels).
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct CodecError {

@@ -1,4 +1,4 @@
-//! The encoder of the compressed transfer matrix (DESIGN.md section 2,
+//! The encoder of the compressed transfer matrix (docs/design.md section 2,
 //! "Compression"; bake step 6): the sparse top fraction, the log bytes, the
 //! block fitting ([`bc1`], [`bc4`]), the mass correction, and the error
 //! measures and codec choice ([`measure`](mod@measure)). The format it writes, and its

@@ -1,4 +1,4 @@
-//! Form factors `F_ij` between patches, with visibility (DESIGN.md section
+//! Form factors `F_ij` between patches, with visibility (docs/design.md section
 //! 1, bake step 3; section 2 for the definition and the invariants).
 //!
 //! ## Two methods

@@ -1,6 +1,6 @@
 //! Voxel simplification: the scene's triangles become *patches*, one per
 //! occupied voxel and axis direction whose neighbour voxel is empty, if the
-//! voxel holds geometry facing that way (DESIGN.md section 1, step 2).
+//! voxel holds geometry facing that way (docs/design.md section 1, step 2).
 //!
 //! The work is split in two:
 //! 1. *Pieces* (OpenCL kernel `kernels/voxelize.cl`, CPU reference

@@ -1,4 +1,4 @@
-//! The compressed transfer matrix (DESIGN.md section 2, "Compression"; bake
+//! The compressed transfer matrix (docs/design.md section 2, "Compression"; bake
 //! step 6): encoders for the three channels of the n × n transfer matrix
 //! `T`, the decoder the run time mirrors, the product `H = T̃ · B0` computed
 //! from the compressed form, error measures, and the choice of the cheapest
@@ -260,7 +260,7 @@ pub enum CodecKind {
 }
 
 impl Default for CodecKind {
-    /// DESIGN.md's setting: BC1 + log + the top 4 % kept in the sparse
+    /// docs/design.md's setting: BC1 + log + the top 4 % kept in the sparse
     /// part, with the log range chosen from the data (`auto_log_range`)
     /// rather than the thesis's fixed L = 25, which costs accuracy at no
     /// saving, and the sparse values as shared-exponent RGB9E5 rather than

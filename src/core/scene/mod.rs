@@ -1,6 +1,6 @@
 //! Scene loading: OBJ + MTL through `tobj` (here) and glTF 2.0 through the
 //! `gltf` crate ([`gltf`]), triangulated, validated and repaired with every
-//! repair counted (DESIGN.md section 4: nothing is silently clamped or
+//! repair counted (docs/design.md section 4: nothing is silently clamped or
 //! dropped). Both formats end in one [`Scene`] and one set of checks.
 //!
 //! [`load`] reads the OBJ with `tobj` (triangulated, single index, points
