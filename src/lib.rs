@@ -16,20 +16,23 @@
 //!    └─────────┴───────┬─────────┴─────┴──────────┴────────┘
 //!                      ▼
 //!                    core  (scene, lights, patches, math, BVH, direct
-//!                           light, permutation, OpenCL layer, .npy,
-//!                           the default camera and lights)
+//!                           light, permutation, .npy, the default camera
+//!                           and lights)
 //! ```
 //!
-//! Which module may import which (`docs/architecture.md` has the same
-//! table with the reasons):
+//! `core`, `bakefile`, `bake` (with the OpenCL layer), `runtime` and `gl`
+//! are crates of the workspace (`crates/`), so cargo enforces their edges
+//! (`tests/architecture.rs` checks them); this package re-exports them
+//! under these names. Which module may import which
+//! (`docs/architecture.md` has the same table with the reasons):
 //!
 //! | module | may import |
 //! |---|---|
-//! | [`core`] | nothing of this crate |
+//! | [`core`] | nothing of ours |
 //! | [`bakefile`] (the contract) | `core` |
 //! | [`bake`] | `core`, `bakefile` |
 //! | [`runtime`] (the CPU frame, the reference; [`runtime::open`] is where an embedding application starts) | `core`, `bakefile` |
-//! | [`gl`] (the GPU frame, one file per pass paired with `glsl/<pass>.*`) | `core`, `bakefile`, `runtime` (its definitions: views, images, emission, the gather's column flags) |
+//! | [`gl`] (the GPU frame, one file per pass paired with `crates/gl/glsl/<pass>.*`) | `core`, `bakefile`, `runtime` (its definitions: views, images, emission, the gather's column flags) |
 //! | [`viewer`] (the window) | `core`, `runtime`, `gl` |
 //! | [`mod@reference`] (our path tracer on the original triangles) | `core` |
 //! | [`mitsuba`] (the Mitsuba 3 export and its reference images) | `core`, `runtime` (the albedo textures and PFM writer, so the exported `ρ(x)` is the one shaded) |
@@ -54,18 +57,18 @@
 //!    back side there (recorded in the file, rebuilt by the run time).
 //! 2. [`bake::voxelize`]: voxel patches ([`core::patch`]) — one per occupied
 //!    voxel and open axis direction, in the mean plane of its geometry, with
-//!    that geometry's projected area (`kernels/voxelize.cl`); what cannot be
+//!    that geometry's projected area (`crates/bake/kernels/voxelize.cl`); what cannot be
 //!    seen (covered points: [`bake::cover`]) is in no patch; a piece that a
 //!    wall thinner than a voxel crosses is first cut along the wall's plane
 //!    ([`bake::cut`]; the cut planes go into the surface map); patches far
 //!    smaller than a voxel face join a neighbour that shares their light
 //!    ([`bake::voxelize::fragments`]).
 //! 3. [`bake::form_factor`]: form factors `F` between patches with
-//!    visibility (`kernels/form_factor.cl`, a BVH of the original
+//!    visibility (`crates/bake/kernels/form_factor.cl`, a BVH of the original
 //!    triangles, [`core::bvh`]).
 //! 4. [`bake::transfer`]: the multi-bounce transfer `T_k = Σ_{h=1..k} F
 //!    (diag(ρ) F)^{h−1}` or `T_∞ = F (I − diag(ρ) F)^{−1}` per colour
-//!    channel, from a tiled OpenCL GEMM ([`bake::gemm`], `kernels/gemm.cl`);
+//!    channel, from a tiled OpenCL GEMM ([`bake::gemm`], `crates/bake/kernels/gemm.cl`);
 //!    `T_∞` by a blocked LU solve built on the same GEMM ([`bake::solve`]).
 //! 5. [`bake::reorder`]: one symmetric permutation of rows and columns that
 //!    makes neighbouring rows alike (the thesis's greedy chain, or a Hilbert
@@ -89,10 +92,10 @@
 //! + Le`.
 //!
 //! ## Invariants
-//! - Every OpenCL kernel (`kernels/*.cl`, embedded with `include_str!`) has a
+//! - Every OpenCL kernel (`crates/bake/kernels/*.cl`, embedded with `include_str!`) has a
 //!   Rust CPU reference, and a test compares the two with a tolerance derived
-//!   from f32 rounding. Every GLSL shader (`glsl/`) has one in [`runtime`]
-//!   or [`core`] (`glsl/README.md` pairs them; tests/gl_gather.rs and
+//!   from f32 rounding. Every GLSL shader (`crates/gl/glsl/`) has one in [`runtime`]
+//!   or [`core`] (`crates/gl/glsl/README.md` pairs them; tests/gl_gather.rs and
 //!   tests/gl_render.rs compare them).
 //! - OpenCL code lives in [`core::compute`] and the stage modules' `cl_*`
 //!   functions; GL code lives in [`gl`] and the window in [`viewer`], which
@@ -120,14 +123,20 @@
 // the same checks as non-positive values.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
-pub mod bake;
-pub mod bakefile;
+pub use radiosity_bake as bake;
+pub use radiosity_bakefile as bakefile;
 pub mod bench;
-pub mod core;
+pub use radiosity_gl as gl;
+pub use radiosity_runtime as runtime;
 pub mod generate;
-pub mod gl;
 pub mod mitsuba;
 pub mod reference;
-pub mod runtime;
 pub mod synthetic;
 pub mod viewer;
+
+/// The shared core (`radiosity-core`), with the OpenCL layer the bake
+/// crate holds (`radiosity_bake::compute`) at its former path.
+pub mod core {
+    pub use radiosity_bake::compute;
+    pub use radiosity_core::*;
+}

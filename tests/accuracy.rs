@@ -407,11 +407,11 @@ fn a_room_on_a_huge_ground_is_refused_naming_the_voxel() {
 }
 
 /// Some faces wound the wrong way: a room with two of its six walls
-/// flipped gets back sides on those walls (src/bake/winding.rs), named in
+/// flipped gets back sides on those walls (crates/bake/src/winding.rs), named in
 /// the bake's summary, and bakes without a warning. Emitting faces get no
 /// back side (a panel emits from its front only), so with the two walls
 /// emitting they lose their patches and the bake warns and names their
-/// materials (src/bake/facing.rs, "Some faces reversed"); the same room
+/// materials (crates/bake/src/facing.rs, "Some faces reversed"); the same room
 /// wound right, and an open scene whose box top faces the sky (blind, with
 /// only backs behind it), bake without the warning.
 #[test]
@@ -468,7 +468,7 @@ fn a_room_with_some_walls_wound_the_wrong_way_gets_back_sides_or_a_warning_namin
 
     // A floor with a bottomless box on it, under the sky. (Its sides lie in
     // voxel faces, x = 0.3 at voxel 0.1: before FACE_SLACK in
-    // src/core/patch.rs, the OpenCL voxelizer put them in the voxels where
+    // crates/core/src/patch.rs, the OpenCL voxelizer put them in the voxels where
     // the host's clip found no polygon, and this bake saw nothing.)
     let mut open = vec![quad(
         [0.5, 0.0, 0.5],
@@ -718,7 +718,7 @@ fn the_near_field_correction_brings_a_sunlit_gallery_closer_to_the_path_tracer()
     // between neighbours (its weights sum to zero per link) but not evenly
     // over receivers' areas: here the shadowed wall under the roof sees the
     // floor's dark strip by the wall more than the patch mean says. Before
-    // the back wall's piece at the roof was cut (src/bake/cut.rs) it was
+    // the back wall's piece at the roof was cut (crates/bake/src/cut.rs) it was
     // −3.9 % / +0.8 %: that piece reached 0.7 m above the roof and its
     // patch, 3/4 sunlit, sent sunlight under the roof; cut, the part under
     // the roof matches the path tracer to 0.1 % and the part above sees

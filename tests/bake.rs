@@ -1,4 +1,4 @@
-//! The whole bake (src/bake/mod.rs): voxelize → form factors → transfer →
+//! The whole bake (crates/bake/src/lib.rs): voxelize → form factors → transfer →
 //! reorder → encode → mesh map → `.rad`, checked through what the run time
 //! will read. The file must read back to the same matrix, permutation and
 //! map; the same inputs must give the same bytes; with the exact codec the

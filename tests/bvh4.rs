@@ -1,5 +1,5 @@
 //! The four-wide BVH of the shadow rays against the binary one it is built
-//! from (`src/core/bvh4.rs`): on generated scenes that are not kind
+//! from (`crates/core/src/bvh4.rs`): on generated scenes that are not kind
 //! (lattice walls whose box planes rays start on and run along, slivers,
 //! millimetre and kilometre scales far from the origin, a random soup), a
 //! segment is blocked for one exactly when it is for the other and the

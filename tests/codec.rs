@@ -1,4 +1,4 @@
-//! Tests of the compressed transfer matrix (src/bakefile/codec/mod.rs): every codec's
+//! Tests of the compressed transfer matrix (crates/bakefile/src/codec/mod.rs): every codec's
 //! round trip against stated bounds, the run-time gather against
 //! decode-then-multiply, zero handling, tiles, sizes, determinism, the
 //! choice under an error bound, the report, and the serialization into

@@ -1,15 +1,15 @@
 //! The documentation names no file that does not exist: every repository
 //! path written in the README, `docs/`, the shader and kernel READMEs, and
 //! the comments of the sources, kernels, shaders, scripts and tests
-//! (`src/bake/cut.rs`, `kernels/gemm.cl`, …), and every relative Markdown
+//! (`crates/bake/src/cut.rs`, `crates/bake/kernels/gemm.cl`, …), and every relative Markdown
 //! link. Moved code left such paths behind before (`src/transfer.rs`,
 //! `src/codec.rs` named long after the files moved).
 
 use std::path::{Path, PathBuf};
 
 /// Top-level directories whose paths are checked.
-const ROOTS: [&str; 9] = [
-    "src", "docs", "scripts", "tests", "kernels", "glsl", "examples", "scenes", "fuzz",
+const ROOTS: [&str; 8] = [
+    "crates", "src", "docs", "scripts", "tests", "examples", "scenes", "fuzz",
 ];
 
 /// File name endings that make a token a path (a bare directory such as
@@ -116,7 +116,6 @@ fn every_path_the_docs_and_comments_name_exists() {
         walk(&root.join(dir), &mut files);
     }
     files.push(root.join("README.md"));
-    files.push(root.join("build.rs"));
     let mut missing = Vec::new();
     let mut checked = 0;
     for f in &files {
@@ -166,11 +165,15 @@ fn every_path_the_docs_and_comments_name_exists() {
 
 #[test]
 fn the_scan_finds_paths_and_leaves_out_what_is_not_one() {
-    let t = "see src/bake/cut.rs, `kernels/gemm.cl`; ../shared/scenes/sponza/sponza.obj \
+    let t = "see crates/bake/src/cut.rs, `crates/bake/kernels/gemm.cl`; ../shared/scenes/sponza/sponza.obj \
              and scenes/NAME/ and $OUT/docs/x.md and [a](docs/images/a.png#top)";
     assert_eq!(
         named_paths(t),
-        ["src/bake/cut.rs", "docs/images/a.png", "kernels/gemm.cl"]
+        [
+            "crates/bake/src/cut.rs",
+            "crates/bake/kernels/gemm.cl",
+            "docs/images/a.png"
+        ]
     );
     assert_eq!(markdown_links(t), ["docs/images/a.png"]);
 }

@@ -1,4 +1,4 @@
-//! Form factors with visibility (`src/bake/form_factor/contour.rs`, `kernels/form_factor.cl`):
+//! Form factors with visibility (`crates/bake/src/form_factor/contour.rs`, `crates/bake/kernels/form_factor.cl`):
 //! analytic view factors from Howell's catalog, occlusion with a known
 //! answer, the invariants of docs/design.md section 2, OpenCL against the f64
 //! CPU reference, determinism, and what the skipping rules save.

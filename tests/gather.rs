@@ -1,4 +1,4 @@
-//! The run time's compressed gather (src/runtime/gather.rs) against the
+//! The run time's compressed gather (crates/runtime/src/gather.rs) against the
 //! codec's reference decode and the exact product, for every codec, with
 //! and without AVX-512 and column skipping.
 

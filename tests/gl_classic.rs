@@ -1,6 +1,6 @@
-//! Classic radiosity on the GPU (`glsl/classic.comp`, `src/gl/classic.rs`)
+//! Classic radiosity on the GPU (`crates/gl/glsl/classic.comp`, `crates/gl/src/classic.rs`)
 //! against its CPU reference (`bench::frame::classic`) and the exact f64
-//! series, and the copy kernel (`glsl/copy.comp`, the memory roof of
+//! series, and the copy kernel (`crates/gl/glsl/copy.comp`, the memory roof of
 //! `bench frame`) against the identity, on a headless EGL context (Mesa
 //! llvmpipe here; the test fails, naming what to install, where there is
 //! none).

@@ -1,4 +1,4 @@
-//! The GL gather (`glsl/gather.comp`, `src/gl/gather.rs`) against its CPU
+//! The GL gather (`crates/gl/glsl/gather.comp`, `crates/gl/src/gather.rs`) against its CPU
 //! reference (`runtime::gather`), on a headless EGL context (Mesa llvmpipe
 //! here; the test fails, naming what to install, where there is none).
 

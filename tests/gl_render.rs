@@ -1,6 +1,6 @@
-//! The GL run time (src/gl/: shadow maps, direct light on patches, the
+//! The GL run time (crates/gl/src/: shadow maps, direct light on patches, the
 //! gather, per-fragment shading) against the CPU run time that defines
-//! every quantity (src/runtime/), on a headless EGL context (Mesa llvmpipe
+//! every quantity (crates/runtime/src/), on a headless EGL context (Mesa llvmpipe
 //! here; the tests fail, naming what to install, where there is none).
 //!
 //! Where the two differ, and why the bounds below hold:
@@ -231,7 +231,7 @@ fn gl_direct_light_and_gather_on_patches_match_the_cpu_run_time_with_nine_lights
     r.delete(gl);
 }
 
-/// The direct pass's shadow rays (glsl/shadow_ray.glsl: the CPU's BVH,
+/// The direct pass's shadow rays (crates/gl/glsl/shadow_ray.glsl: the CPU's BVH,
 /// traversal and f64 triangle test on the GPU) against the CPU run time's,
 /// each of the nine lights alone, patch by patch. Points and the sun have
 /// no `acos`: their D is the CPU's within f32 rounding (measured ≤ 8e-7
@@ -654,7 +654,7 @@ fn gl_a_light_outside_a_closed_room_changes_nothing_inside() {
     r.delete(gl);
 }
 
-/// The surface map's cut pieces on the GPU (glsl/surface.glsl): a room of
+/// The surface map's cut pieces on the GPU (crates/gl/glsl/surface.glsl): a room of
 /// single quads split by a thin wall standing on its floor, so the floor,
 /// ceiling and side quads are cut where the wall crosses them (the
 /// voxelizer's "Pieces cut by a wall"). From the dark room the GPU shows
@@ -945,7 +945,7 @@ fn gl_textured_images_match_the_cpu_renderer_when_both_filter_bilinearly() {
 }
 
 /// A point light exactly in a ceiling's plane: the GPU's shadow rays stop
-/// short of it as the CPU's do (glsl/shadow_ray.glsl), so the floor is lit
+/// short of it as the CPU's do (crates/gl/glsl/shadow_ray.glsl), so the floor is lit
 /// and its D is the CPU's patch by patch.
 #[test]
 fn gl_a_light_in_a_surfaces_plane_lights_the_floor_as_the_cpus() {

@@ -495,7 +495,7 @@ fn cornell_box_every_vertex_is_mapped_deterministically() {
     // Fallbacks are rare where a vertex can be seen: under 1 % of the
     // vertices. The floor's vertices under the blocks are covered (the
     // voxelizer's rule: inside a solid), in no patch since the floor pieces
-    // the blocks' walls cross are cut there (src/bake/cut.rs), so every
+    // the blocks' walls cross are cut there (crates/bake/src/cut.rs), so every
     // candidate is behind a wall and they fall back (22 of 1,155).
     let normals = scene.triangle_normals();
     let bvh = Bvh::build(&scene.positions, &scene.triangles, shift_of(&vox.grid));

@@ -1,5 +1,5 @@
-//! The near-field correction's far weights (src/bake/near_field.rs,
-//! src/bakefile/near_field.rs): links below the stored form factor are
+//! The near-field correction's far weights (crates/bake/src/near_field.rs,
+//! crates/bakefile/src/near_field.rs): links below the stored form factor are
 //! dropped, and their light must still arrive. The oracle is the same bake
 //! with every link stored, which applies the per-link correction exactly.
 

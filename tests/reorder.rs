@@ -1,4 +1,4 @@
-//! Tests of the reordering (src/bake/reorder.rs and kernels/reorder.cl): the
+//! Tests of the reordering (crates/bake/src/reorder.rs and crates/bake/kernels/reorder.cl): the
 //! permutation's algebra, the Hilbert curve, the OpenCL distance kernel
 //! against the f64 CPU reference, and what the greedy chain recovers.
 

@@ -1,4 +1,4 @@
-//! The CPU run time (src/runtime/) on baked scenes generated here: energy
+//! The CPU run time (crates/runtime/src/) on baked scenes generated here: energy
 //! balance in a closed box, lights outside a closed room, incremental
 //! updates against full products, colour bleeding in the Cornell box
 //! measured on pixels, the surface map's smoothness on a wall of two

@@ -256,7 +256,7 @@ fn compression_preamble(
          (`auto`: chosen from the data; the thesis fixes 25) and the top fraction f of entries \
          kept in a sparse part with values in v (f32 exact, f16, or rgb9e5: three channels \
          in one shared-exponent word); `bc4-log` the same with one BC4 image \
-         per channel; `bc6h`, `f16`, `f32` plain (module doc of src/bakefile/codec/mod.rs).\n"
+         per channel; `bc6h`, `f16`, `f32` plain (module doc of crates/bakefile/src/codec/mod.rs).\n"
     )?;
     writeln!(
         out,

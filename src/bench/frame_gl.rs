@@ -1,17 +1,17 @@
 //! `bench frame`'s GPU half, on one headless GL context (EGL: a GPU where
 //! there is one, else Mesa's llvmpipe, whose figures are CPU figures too):
 //!
-//! - **The memory roof**: a buffer copy (`glsl/copy.comp`) of up to 256 MiB
+//! - **The memory roof**: a buffer copy (`crates/gl/glsl/copy.comp`) of up to 256 MiB
 //!   each way, far above any GPU's caches, timed with GPU timestamps.
-//! - **The gather** (`src/gl/gather.rs`) over every column and over the
+//! - **The gather** (`crates/gl/src/gather.rs`) over every column and over the
 //!   scene's lit columns, GPU time of its three passes (no upload or read
 //!   back): bytes of compressed matrix read per second, as a fraction of
 //!   the copy's; and its largest difference from the CPU gather of the
 //!   same `B0` against the bound of f32 summation order (2 γ_(n+1), every
 //!   term being ≥ 0).
-//! - **The frame** (`src/gl/renderer.rs`): each pass's GPU time and the
+//! - **The frame** (`crates/gl/src/renderer.rs`): each pass's GPU time and the
 //!   wall time to `glFinish`, at the benchmark's resolution.
-//! - **Classic radiosity on the GPU** (`src/gl/classic.rs`): k dense f32
+//! - **Classic radiosity on the GPU** (`crates/gl/src/classic.rs`): k dense f32
 //!   passes over the same `F` as the CPU's classic rows, and the Jacobi
 //!   passes that reach the gather's error, against the exact `T_∞ B0`.
 
@@ -99,7 +99,7 @@ pub(crate) fn gather_table(
     writeln!(out, "|---|---|---|---|---|")?;
     // Every term is ≥ 0 (B0 ≥ 0, decoded entries ≥ 0): GL and CPU are each
     // within γ_(n+1) of the exact sum relatively, so within 2 γ of each
-    // other (src/gl/gather.rs).
+    // other (crates/gl/src/gather.rs).
     let u = f64::from(f32::EPSILON) / 2.0;
     let m = (n + 1) as f64;
     let bound = 2.0 * m * u / (1.0 - m * u);
@@ -222,7 +222,7 @@ pub(crate) fn classic_rows(
     Ok(())
 }
 
-/// The GL frame (`src/gl/renderer.rs`) on a headless context: the GPU time
+/// The GL frame (`crates/gl/src/renderer.rs`) on a headless context: the GPU time
 /// of each pass (timestamp queries) for a frame with nothing reused, with
 /// and without column skipping, the wall time of a whole frame and image
 /// (to `glFinish`), and an unchanged frame; or why it did not run. On

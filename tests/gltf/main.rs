@@ -1,4 +1,4 @@
-//! glTF 2.0 scenes (src/core/scene/gltf): files written here, by hand with
+//! glTF 2.0 scenes (crates/core/src/scene/gltf): files written here, by hand with
 //! a small builder (node transforms, a mirror, strips and fans, texture
 //! coordinate sets and transforms, lights and a camera, broken files) or by
 //! `scripts/obj2gltf.py` (an independent Python converter) from the OBJ

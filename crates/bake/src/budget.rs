@@ -1,0 +1,155 @@
+//! Memory budgets, checked before the bake allocates: what the stages will
+//! need for `n` patches against what the machine and the device have, and
+//! the bake file's format limit. A request that does not fit is refused
+//! with how much it needs, how much there is and the largest patch count
+//! that fits — before the time of voxelizing or tracing is spent, and
+//! before anything is written.
+//!
+//! **What a bake of `n` patches holds** (bytes, dominant terms; every
+//! matrix is `n × n`):
+//! - form factors by rays: the counts (f32, `4n²`) and the symmetrised
+//!   `A F` (f64, `8n²`), then `F` (f32, `4n²`): `16n²` at the peak;
+//! - transfer and after: `F` (kept for the export, `4n²`), `T` (3 channels
+//!   of f32, `12n²`), their reordered copies for the encoder (`12n²`), and
+//!   during the LU solve its host copy of `I − diag(ρ) F` (`4n²`): `32n²`;
+//! - on the OpenCL device, the transfer's padded matrices: two for the LU
+//!   solve, three for doubling (five with Horner steps); on a CPU device
+//!   (PoCL) these live in the same RAM and are added to the host's share;
+//! - the CPU f64 reference: faer's f64 matrices (`M`, its LU, `F` and `T`,
+//!   `32n²`) on top of the above;
+//! - inspection exports: the decoded matrix and its reordered copy
+//!   (`24n²`) on top.
+//!
+//! The bake file addresses `n²` matrix entries with 32-bit indices
+//! ([`crate::encode`]): `n ≤ 65,535`.
+
+use crate::compute::DeviceInfo;
+use crate::error::BakeError;
+
+/// The stage name in errors.
+pub const STAGE: &str = "memory budget";
+
+/// Host bytes per `n²` of the stages after the form factors (module doc).
+const HOST_PER_ENTRY: u64 = 32;
+/// Extra host bytes per `n²` of the CPU f64 reference.
+const CPU_REFERENCE_PER_ENTRY: u64 = 32;
+/// Extra host bytes per `n²` of the inspection exports.
+const EXPORT_PER_ENTRY: u64 = 24;
+/// The largest `n` whose `n²` fits the codec's 32-bit entry indices.
+pub const MAX_PATCHES_FORMAT: usize = 65_535;
+
+/// Where the transfer stage runs, for its share of memory.
+#[derive(Clone, Copy, Debug)]
+pub enum Device<'a> {
+    /// The f64 CPU reference.
+    CpuReference,
+    /// An OpenCL device; `matrices` padded `n × n` f32 buffers on it.
+    OpenCl { info: &'a DeviceInfo, matrices: u64 },
+}
+
+/// What `n` patches need, in bytes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Needs {
+    pub host: u64,
+    pub device: u64,
+}
+
+/// The bytes `n` patches need on the host and on the device (`export`:
+/// with the inspection exports).
+pub fn needs(n: usize, device: Device, export: bool) -> Needs {
+    let nn = (n as u64).saturating_mul(n as u64);
+    let per = HOST_PER_ENTRY + if export { EXPORT_PER_ENTRY } else { 0 };
+    let mut host = per.saturating_mul(nn);
+    let mut dev = 0;
+    match device {
+        Device::CpuReference => host = host.saturating_add(CPU_REFERENCE_PER_ENTRY * nn),
+        Device::OpenCl { info, matrices } => {
+            dev = (4 * matrices).saturating_mul(nn);
+            if info.kind == "CPU" {
+                host = host.saturating_add(dev);
+            }
+        }
+    }
+    Needs { host, device: dev }
+}
+
+/// The largest `n` with `needs(n)` within `host` and `device` bytes.
+pub fn largest_fitting(host: u64, device: Device, export: bool) -> usize {
+    let per = needs(1, device, export);
+    let mut n = ((host / per.host.max(1)) as f64).sqrt() as usize;
+    if let Device::OpenCl { info, .. } = device {
+        if per.device > 0 && info.kind != "CPU" {
+            n = n.min(((info.global_mem_bytes / per.device) as f64).sqrt() as usize);
+        }
+    }
+    n.min(MAX_PATCHES_FORMAT)
+}
+
+/// The host memory available for new allocations: `MemAvailable` of
+/// `/proc/meminfo` (Linux), or `None` where it cannot be read.
+pub fn host_available() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib.saturating_mul(1024))
+}
+
+/// Gigabytes, for messages.
+fn gb(bytes: u64) -> String {
+    format!("{:.1} GB", bytes as f64 / 1e9)
+}
+
+/// Checks that a bake of `n` patches fits: the format limit, the host's
+/// `available` bytes (`None`: unknown, not checked) and the device's
+/// global memory. `what` says where `n` comes from ("the requested patch
+/// count", "the voxelization's patches"); `export`: with the inspection
+/// exports.
+pub fn check(
+    n: usize,
+    what: &str,
+    available: Option<u64>,
+    device: Device,
+    export: bool,
+) -> Result<(), BakeError> {
+    if n > MAX_PATCHES_FORMAT {
+        return Err(BakeError::TooLarge {
+            stage: STAGE,
+            detail: format!(
+                "{what} is {n}: the bake file indexes the n² matrix entries with 32 bits, so \
+                 at most {MAX_PATCHES_FORMAT} patches fit"
+            ),
+        });
+    }
+    let need = needs(n, device, export);
+    if let Some(avail) = available {
+        if need.host > avail {
+            return Err(BakeError::TooLarge {
+                stage: STAGE,
+                detail: format!(
+                    "{what} is {n}: the bake needs about {} of memory (form factors, transfer \
+                     and codec matrices of {n} × {n}), this machine has {} available; at most \
+                     about {} patches fit",
+                    gb(need.host),
+                    gb(avail),
+                    largest_fitting(avail, device, export)
+                ),
+            });
+        }
+    }
+    if let Device::OpenCl { info, .. } = device {
+        if info.kind != "CPU" && need.device > info.global_mem_bytes {
+            return Err(BakeError::TooLarge {
+                stage: STAGE,
+                detail: format!(
+                    "{what} is {n}: the transfer stage needs about {} on the OpenCL device {}, \
+                     which has {}; at most about {} patches fit",
+                    gb(need.device),
+                    info.name,
+                    gb(info.global_mem_bytes),
+                    largest_fitting(available.unwrap_or(u64::MAX), device, export)
+                ),
+            });
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,360 @@
+//! Error measures of a compressed matrix (docs/design.md section 3, measure 3)
+//! and the choice of the cheapest codec setting under an error bound.
+
+use super::{encode, EncodeError};
+use radiosity_bakefile::codec::{CodecKind, Encoded, SparseValues, LOG_RANGE_AUTO};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Why no codec setting could be chosen.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ChooseError {
+    #[error("the error bound must be a non-negative number, got {0}")]
+    MaxError(f64),
+    #[error("choosing a codec by error needs at least one B0 sample")]
+    NoSamples,
+    #[error("every B0 sample needs {0} values per channel")]
+    SampleSize(usize),
+    #[error("no codec reaches a relative H error of {max_error}; tried {tried}")]
+    NoCandidate { max_error: f64, tried: String },
+    #[error(transparent)]
+    Encode(#[from] EncodeError),
+}
+
+/// Errors of a decoded matrix against the original (docs/design.md section 3,
+/// measure 3). Entry errors are over all `3 n²` entries (three channels).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct CodecError {
+    /// The thesis's table: mean, max and total absolute error per entry.
+    pub mean_abs: f64,
+    pub max_abs: f64,
+    pub total_abs: f64,
+    /// `‖T̃ − T‖_F / ‖T‖_F`, the three channels pooled.
+    pub rel_frobenius: f64,
+    /// `‖H̃ − H‖ / ‖H‖` with `H = T B0`, pooled over all samples, channels
+    /// and patches (0 without samples).
+    pub rel_rms_h: f64,
+    /// The worst single sample's `‖H̃ − H‖ / ‖H‖` (three channels).
+    pub max_rel_h: f64,
+    /// Entries exactly 0 in `T` but not in `T̃`.
+    pub zeros_changed: u64,
+    pub samples: usize,
+}
+
+impl std::fmt::Display for CodecError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "entry error mean {:.3e} max {:.3e} total {:.3e}; rel. Frobenius {:.3e}; \
+             H rel. RMS {:.3e} (worst sample {:.3e}, {} samples); zeros changed {}",
+            self.mean_abs,
+            self.max_abs,
+            self.total_abs,
+            self.rel_frobenius,
+            self.rel_rms_h,
+            self.max_rel_h,
+            self.samples,
+            self.zeros_changed
+        )
+    }
+}
+
+/// Measures `decoded` against `t` (module doc, [`CodecError`]); products in
+/// f64.
+pub fn measure(
+    t: [&[f32]; 3],
+    n: usize,
+    decoded: &[Vec<f32>; 3],
+    b0_samples: &[[Vec<f32>; 3]],
+) -> CodecError {
+    #[derive(Default, Clone, Copy)]
+    struct Acc {
+        sum: f64,
+        max: f64,
+        diff2: f64,
+        ref2: f64,
+        zeros: u64,
+    }
+    let acc = (0..3)
+        .flat_map(|c| (0..n).map(move |i| (c, i)))
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|(c, i)| {
+            let mut a = Acc::default();
+            let (r, d) = (&t[c][i * n..(i + 1) * n], &decoded[c][i * n..(i + 1) * n]);
+            for (&x, &y) in r.iter().zip(d) {
+                let e = (y as f64 - x as f64).abs();
+                a.sum += e;
+                a.max = a.max.max(e);
+                a.diff2 += e * e;
+                a.ref2 += (x as f64) * (x as f64);
+                a.zeros += u64::from(x == 0.0 && y != 0.0);
+            }
+            a
+        })
+        .reduce(Acc::default, |a, b| Acc {
+            sum: a.sum + b.sum,
+            max: a.max.max(b.max),
+            diff2: a.diff2 + b.diff2,
+            ref2: a.ref2 + b.ref2,
+            zeros: a.zeros + b.zeros,
+        });
+    let entries = (3 * n * n).max(1) as f64;
+    let (mut d2, mut r2, mut worst) = (0.0f64, 0.0f64, 0.0f64);
+    for b0 in b0_samples {
+        let (mut sd, mut sr) = (0.0f64, 0.0f64);
+        for c in 0..3 {
+            let (x, y) = (mat_vec(t[c], n, &b0[c]), mat_vec(&decoded[c], n, &b0[c]));
+            for (a, b) in x.iter().zip(&y) {
+                sd += (b - a) * (b - a);
+                sr += a * a;
+            }
+        }
+        d2 += sd;
+        r2 += sr;
+        worst = worst.max(ratio(sd.sqrt(), sr.sqrt()));
+    }
+    CodecError {
+        mean_abs: acc.sum / entries,
+        max_abs: acc.max,
+        total_abs: acc.sum,
+        rel_frobenius: ratio(acc.diff2.sqrt(), acc.ref2.sqrt()),
+        rel_rms_h: ratio(d2.sqrt(), r2.sqrt()),
+        max_rel_h: worst,
+        zeros_changed: acc.zeros,
+        samples: b0_samples.len(),
+    }
+}
+
+/// `a / b`, 0 when both are 0, infinite when only `b` is.
+fn ratio(a: f64, b: f64) -> f64 {
+    if b > 0.0 {
+        a / b
+    } else if a > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    }
+}
+
+/// `M v` in f64 for a row-major n × n f32 matrix.
+pub fn mat_vec(m: &[f32], n: usize, v: &[f32]) -> Vec<f64> {
+    assert_eq!(v.len(), n);
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            m[i * n..(i + 1) * n]
+                .iter()
+                .zip(v)
+                .map(|(&a, &b)| a as f64 * b as f64)
+                .sum()
+        })
+        .collect()
+}
+
+/// The candidates [`choose`] tries by default: BC1-log with the automatic
+/// log range and RGB9E5 sparse values at top fractions {0, 0.01, 0.02,
+/// 0.03, 0.04, 0.06, 0.08, 0.12, 0.16, 0.2, 0.24}, the same at the top
+/// 4 % with f16 and f32 sparse values, the thesis's setting, BC4-log at
+/// {0, 0.02}, BC6H, F16 and F32 (exact, so some candidate always passes).
+pub fn default_candidates() -> Vec<CodecKind> {
+    let bc1 = |top_fraction, sparse| CodecKind::Bc1Log {
+        top_fraction,
+        log_range: LOG_RANGE_AUTO,
+        sparse,
+    };
+    let mut v: Vec<CodecKind> = [
+        0.0, 0.01, 0.02, 0.03, 0.04, 0.06, 0.08, 0.12, 0.16, 0.2, 0.24,
+    ]
+    .iter()
+    .map(|&f| bc1(f, SparseValues::Rgb9e5))
+    .collect();
+    v.push(bc1(0.04, SparseValues::F16));
+    v.push(bc1(0.04, SparseValues::F32));
+    v.push(CodecKind::THESIS);
+    for &top_fraction in &[0.0, 0.02] {
+        v.push(CodecKind::Bc4Log {
+            top_fraction,
+            log_range: LOG_RANGE_AUTO,
+            sparse: SparseValues::Rgb9e5,
+        });
+    }
+    v.extend([CodecKind::Bc6h, CodecKind::F16, CodecKind::F32]);
+    v
+}
+
+/// How much larger than the smallest passing setting a log-scaled block
+/// setting (BC1, BC4) may be and still be chosen over it ([`choose`]).
+/// The CPU gathers BC1 faster per frame than BC6H, which stores about
+/// twice its bytes, and than f16, about ten times (`radiosity bench
+/// frame`, the Cornell box at 3,940 patches, every column: BC1 at 0.57
+/// B/entry 1.1 ms, BC6H at 1.0 B/entry 10.1 ms, f16 3.9 ms), and a GPU
+/// decodes all of them in hardware: a little more memory buys a faster
+/// frame where the CPU gathers.
+pub const BLOCK_CODEC_SLACK: f64 = 2.0;
+
+/// The setting [`choose`] takes among `candidates` (empty: the
+/// [`default_candidates`]) whose relative RMS error of `H = T̃ · B0` over
+/// `b0_samples` is at most `max_error`: the cheapest in total bytes, unless
+/// a BC1 or BC4 setting passes within [`BLOCK_CODEC_SLACK`] times its bytes,
+/// in which case the cheapest such block setting. Every candidate that can
+/// still matter is encoded and measured; ties go to the earlier candidate.
+/// Returns the setting, its encoding and its measured error.
+pub fn choose(
+    t: [&[f32]; 3],
+    n: usize,
+    b0_samples: &[[Vec<f32>; 3]],
+    max_error: f64,
+    candidates: &[CodecKind],
+) -> Result<(CodecKind, Encoded, f64), ChooseError> {
+    choose_with(t, n, b0_samples, max_error, candidates, &mut |_, _, _| {})
+}
+
+/// [`choose`], calling `on_candidate(setting, H error, bytes per entry)`
+/// as each candidate is measured (for progress output and reports).
+pub fn choose_with(
+    t: [&[f32]; 3],
+    n: usize,
+    b0_samples: &[[Vec<f32>; 3]],
+    max_error: f64,
+    candidates: &[CodecKind],
+    on_candidate: &mut dyn FnMut(CodecKind, f64, f64),
+) -> Result<(CodecKind, Encoded, f64), ChooseError> {
+    if !(max_error >= 0.0) {
+        return Err(ChooseError::MaxError(max_error));
+    }
+    if b0_samples.is_empty() {
+        return Err(ChooseError::NoSamples);
+    }
+    for b0 in b0_samples {
+        if b0.iter().any(|c| c.len() != n) {
+            return Err(ChooseError::SampleSize(n));
+        }
+    }
+    let defaults;
+    let candidates = if candidates.is_empty() {
+        defaults = default_candidates();
+        &defaults[..]
+    } else {
+        candidates
+    };
+    // The exact H of every sample, once; each candidate is measured through
+    // its f64 gather, without a decoded n × n copy.
+    let reference: Vec<[Vec<f64>; 3]> = b0_samples
+        .iter()
+        .map(|b| std::array::from_fn(|c| mat_vec(t[c], n, &b[c])))
+        .collect();
+    // Cheapest first (by the bytes a setting is expected to take); once a
+    // setting meets the bound, only those expected to be cheaper than it
+    // still need trying.
+    let mut order: Vec<CodecKind> = candidates.to_vec();
+    order.sort_by(|a, b| expected_bytes_per_entry(*a).total_cmp(&expected_bytes_per_entry(*b)));
+    let is_block = |k: CodecKind| matches!(k, CodecKind::Bc1Log { .. } | CodecKind::Bc4Log { .. });
+    // The passing settings kept: the cheapest, and the cheapest block
+    // setting after it (at most two encodings are held).
+    let mut passing: Vec<(CodecKind, Encoded, f64)> = Vec::new();
+    let mut tried = Vec::new();
+    for kind in order {
+        // Past the cheapest passing setting, only block settings within the
+        // slack can still be chosen; past the cheapest passing block
+        // setting, nothing can.
+        let expected = expected_bytes_per_entry(kind);
+        if let Some(b) = passing.first() {
+            let limit = BLOCK_CODEC_SLACK * b.1.bytes_per_entry();
+            if passing.iter().any(|p| is_block(p.0)) || expected > limit {
+                break;
+            }
+            if !is_block(kind) {
+                continue;
+            }
+        }
+        let e = encode(kind, t, n)?;
+        let err = h_error(&e, &reference, b0_samples);
+        on_candidate(kind, err, e.bytes_per_entry());
+        tried.push(format!(
+            "{kind}: {err:.3e} at {:.3} B/entry",
+            e.bytes_per_entry()
+        ));
+        if err <= max_error {
+            passing.push((kind, e, err));
+        }
+    }
+    // The candidates come in order of expected bytes, which the real bytes
+    // follow closely; compare the real ones.
+    let Some(cheapest) = (0..passing.len()).min_by_key(|&i| passing[i].1.bytes_total()) else {
+        return Err(ChooseError::NoCandidate {
+            max_error,
+            tried: tried.join("; "),
+        });
+    };
+    let limit = BLOCK_CODEC_SLACK * passing[cheapest].1.bytes_total() as f64;
+    let block = (0..passing.len())
+        .filter(|&i| is_block(passing[i].0) && passing[i].1.bytes_total() as f64 <= limit)
+        .min_by_key(|&i| passing[i].1.bytes_total());
+    Ok(passing.swap_remove(block.unwrap_or(cheapest)))
+}
+
+/// The log settings among the [`default_candidates`] expected to cost no
+/// more than `kind`: what the bake tries on the column-scaled matrix after
+/// choosing `kind` on the plain one (`bake::run`).
+pub fn log_candidates_no_dearer_than(kind: CodecKind) -> Vec<CodecKind> {
+    let limit = expected_bytes_per_entry(kind);
+    default_candidates()
+        .into_iter()
+        .filter(|k| k.log_params().is_some() && expected_bytes_per_entry(*k) <= limit)
+        .collect()
+}
+
+/// The bytes per matrix entry a setting is expected to take for an RGB
+/// matrix without zero tiles (module doc of the codec: the dense part's
+/// rate plus, per sparse position, a 2-byte column and its values), used to
+/// try the cheapest settings first.
+pub fn expected_bytes_per_entry(kind: CodecKind) -> f64 {
+    let sparse = |top: f64, s: SparseValues| {
+        top * (2.0
+            + match s {
+                SparseValues::Rgb9e5 => 4.0,
+                SparseValues::F16 => 6.0,
+                SparseValues::F32 => 12.0,
+            })
+    };
+    match kind {
+        CodecKind::Bc1Log {
+            top_fraction,
+            sparse: s,
+            ..
+        } => 0.5 + sparse(top_fraction, s),
+        CodecKind::Bc4Log {
+            top_fraction,
+            sparse: s,
+            ..
+        } => 1.5 + sparse(top_fraction, s),
+        CodecKind::Bc6h => 1.0,
+        CodecKind::F16 => 6.0,
+        CodecKind::F32 => 12.0,
+    }
+}
+
+/// The relative RMS error of `H̃ = T̃ B0` (computed from the encoding in
+/// f64, [`Encoded::gather_f64`]) against the exact products `reference`
+/// (`T B0` per sample and channel, e.g. from [`mat_vec`]), pooled over all
+/// samples, channels and patches as in [`CodecError::rel_rms_h`].
+pub fn h_error(e: &Encoded, reference: &[[Vec<f64>; 3]], b0_samples: &[[Vec<f32>; 3]]) -> f64 {
+    let (mut d2, mut r2) = (0.0f64, 0.0f64);
+    // All samples in one pass over the matrix (each tile decoded once);
+    // in groups, so that the accumulators of a row of tiles stay small.
+    let mut gathered = Vec::with_capacity(b0_samples.len());
+    for group in b0_samples.chunks(64) {
+        let b0s: Vec<[&[f32]; 3]> = group.iter().map(|b| [&b[0][..], &b[1], &b[2]]).collect();
+        gathered.extend(e.gather_many_f64(&b0s));
+    }
+    for (h, g) in reference.iter().zip(&gathered) {
+        for c in 0..3 {
+            for (a, b) in h[c].iter().zip(&g[c]) {
+                d2 += (b - a) * (b - a);
+                r2 += a * a;
+            }
+        }
+    }
+    ratio(d2.sqrt(), r2.sqrt())
+}

@@ -1,0 +1,622 @@
+//! The encoder of the compressed transfer matrix (docs/design.md section 2,
+//! "Compression"; bake step 6): the sparse top fraction, the log bytes, the
+//! block fitting ([`bc1`], [`bc4`]), the mass correction, and the error
+//! measures and codec choice ([`measure`](mod@measure)). The format it writes, and its
+//! decoder, are the contract's ([`radiosity_bakefile::codec`], whose module
+//! doc describes every step).
+
+pub mod bc1;
+pub mod bc4;
+pub mod measure;
+
+pub use measure::{
+    choose, choose_with, default_candidates, h_error, mat_vec, measure, CodecError,
+    BLOCK_CODEC_SLACK,
+};
+
+use bc1::encode_bc1_tile;
+use bc4::encode_bc4_tile;
+use half::f16;
+use radiosity_bakefile::codec::decode::{decode_tile_bytes, log_lut, Codebook};
+use radiosity_bakefile::codec::rgb9e5;
+use radiosity_bakefile::codec::{
+    distinct_channels, CodecKind, CodecSettingError, DenseFormat, EncodeStats, Encoded, Sparse,
+    SparseValues, TileIndex, AUTO_FLUSH_QUANTILE, LOG_RANGE_AUTO, TILE,
+};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Why a matrix cannot be encoded.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EncodeError {
+    #[error(transparent)]
+    Setting(#[from] CodecSettingError),
+    #[error("transfer channel {channel} has {len} entries, expected n² for n = {n}")]
+    Size {
+        channel: usize,
+        len: usize,
+        n: usize,
+    },
+    #[error(
+        "transfer entry ({row}, {col}) of channel {channel} is {value}: entries must be finite \
+         and non-negative"
+    )]
+    Entry {
+        row: usize,
+        col: usize,
+        channel: usize,
+        value: f32,
+    },
+    #[error("{0} patches exceed the codec's limits (n² < 2^32)")]
+    TooManyPatches(usize),
+    #[error("the dense part takes {0} bytes, more than the 4 GiB its u32 offsets address")]
+    DenseTooLarge(usize),
+}
+
+/// The power of two `s` with `max · s ∈ [2^14, 2^15)`: halves of values
+/// times `s` stay below 65504 and normal down to `2^−29 · max`. 1 for 0.
+fn pow2_scale(max: f32) -> f32 {
+    if !(max > 0.0) {
+        return 1.0;
+    }
+    let e = (max as f64).log2().floor() as i32;
+    2f64.powi((14 - e).clamp(-100, 100)) as f32
+}
+
+/// The log byte of a dense value `v ≥ 0` for maximum `m` and range `l`.
+fn log_byte(v: f32, m: f32, l: f32) -> u8 {
+    if !(v > 0.0) || !(m > 0.0) {
+        return 0;
+    }
+    let x = 255.0 / l as f64 * ((v as f64 / m as f64).ln() + l as f64);
+    x.round().clamp(0.0, 255.0) as u8
+}
+
+/// The automatic log range: the smallest `L` that maps the
+/// [`AUTO_FLUSH_QUANTILE`] quantile `v` of the nonzero dense values (of the
+/// channel needing the widest range) to byte 1 or above,
+/// `L = ln(M_c / v) / (1 − 1/510)`, clamped to [1, 30]. Each byte level
+/// then spans the least ln-range for the data: at the synthetic room's
+/// spread (5 e-folds below the maximum) levels are 5× finer than the
+/// thesis's L = 25. The quantile is estimated on a deterministic subsample
+/// of at most 2^20 entries per channel (every k-th in row-major order).
+pub fn auto_log_range(
+    max: &[f32],
+    n: usize,
+    dense: &(dyn Fn(usize, usize, usize) -> f32 + Sync),
+) -> f32 {
+    let total = n * n;
+    let stride = total.div_ceil(1 << 20).max(1);
+    let mut l = 1.0f64;
+    for (c, &m) in max.iter().enumerate() {
+        if !(m > 0.0) {
+            continue;
+        }
+        let mut sample: Vec<f32> = (0..total)
+            .step_by(stride)
+            .map(|k| dense(c, k / n, k % n))
+            .filter(|&v| v > 0.0)
+            .collect();
+        if sample.is_empty() {
+            continue;
+        }
+        let k = ((sample.len() as f64 * AUTO_FLUSH_QUANTILE) as usize).min(sample.len() - 1);
+        let (_, v, _) = sample.select_nth_unstable_by(k, f32::total_cmp);
+        let range = (m as f64 / *v as f64).ln() / (1.0 - 1.0 / 510.0);
+        l = l.max(range);
+    }
+    l.clamp(1.0, 30.0) as f32
+}
+
+/// Checks sizes and values: every entry finite and non-negative.
+fn check_matrix(t: [&[f32]; 3], n: usize) -> Result<(), EncodeError> {
+    for (c, ch) in t.iter().enumerate() {
+        if ch.len() != n * n {
+            return Err(EncodeError::Size {
+                channel: c,
+                len: ch.len(),
+                n,
+            });
+        }
+        let bad = |v: &f32| !(v.is_finite() && *v >= 0.0);
+        let row = ch
+            .par_chunks(n.max(1))
+            .position_first(|r| r.iter().any(bad));
+        if let Some(p) = row.and_then(|i| {
+            ch[i * n..(i + 1) * n]
+                .iter()
+                .position(bad)
+                .map(|j| i * n + j)
+        }) {
+            return Err(EncodeError::Entry {
+                row: p / n,
+                col: p % n,
+                channel: c,
+                value: ch[p],
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Positions of the sparse part as a bitset over the n² entries.
+struct Mask {
+    bits: Vec<u64>,
+    n: usize,
+}
+
+impl Mask {
+    fn contains(&self, i: usize, j: usize) -> bool {
+        let k = i * self.n + j;
+        self.bits[k / 64] >> (k % 64) & 1 == 1
+    }
+}
+
+/// The sparse ranking key of an entry: `Σ_c t_c / max_c` (f32, fixed
+/// order), as its bit pattern (monotonic for non-negative floats).
+fn sparse_key(channels: &[&[f32]], inv_max: &[f32], k: usize) -> u32 {
+    let mut s = 0.0f32;
+    for (ch, &im) in channels.iter().zip(inv_max) {
+        s += ch[k] * im;
+    }
+    s.to_bits()
+}
+
+/// Selects the top `count` positions by [`sparse_key`] (ties in row-major
+/// order) without sorting or storing all keys: a two-level radix select on
+/// the keys' bit patterns (high 16 bits, then low 16), then one pass that
+/// collects the positions row by row. Returns the CSR rows' columns.
+fn select_top(n: usize, count: usize, key: &(dyn Fn(usize) -> u32 + Sync)) -> Vec<Vec<u32>> {
+    if count == 0 || n == 0 {
+        return vec![Vec::new(); n];
+    }
+    let histogram = |select: &(dyn Fn(u32) -> Option<usize> + Sync)| -> Vec<u64> {
+        (0..n)
+            .into_par_iter()
+            .fold(
+                || vec![0u64; 1 << 16],
+                |mut h, i| {
+                    for k in i * n..(i + 1) * n {
+                        if let Some(b) = select(key(k)) {
+                            h[b] += 1;
+                        }
+                    }
+                    h
+                },
+            )
+            .reduce(
+                || vec![0u64; 1 << 16],
+                |mut a, b| {
+                    for (x, y) in a.iter_mut().zip(b) {
+                        *x += y;
+                    }
+                    a
+                },
+            )
+    };
+    // Keys of zero entries are 0 and never selected.
+    let count = count as u64;
+    let high = histogram(&|b| (b != 0).then_some((b >> 16) as usize));
+    let nonzero: u64 = high.iter().sum();
+    let count = count.min(nonzero);
+    if count == 0 {
+        return vec![Vec::new(); n];
+    }
+    // The bucket where the running count from the top reaches `count`.
+    let (mut above, mut hb) = (0u64, 0usize);
+    for b in (0..1 << 16).rev() {
+        if above + high[b] >= count {
+            hb = b;
+            break;
+        }
+        above += high[b];
+    }
+    let low = histogram(&|b| (b != 0 && (b >> 16) as usize == hb).then_some((b & 0xffff) as usize));
+    let mut lb = 0usize;
+    for b in (0..1 << 16).rev() {
+        if above + low[b] >= count {
+            lb = b;
+            break;
+        }
+        above += low[b];
+    }
+    let threshold = ((hb as u32) << 16) | lb as u32;
+    // `above` keys are > threshold; `count − above` ties are taken in
+    // row-major order.
+    let ties_wanted = count - above;
+    let ties_per_row: Vec<u64> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            (i * n..(i + 1) * n)
+                .filter(|&k| key(k) == threshold)
+                .count() as u64
+        })
+        .collect();
+    let mut ties_allowed = vec![0u64; n];
+    let mut left = ties_wanted;
+    for i in 0..n {
+        let t = ties_per_row[i].min(left);
+        ties_allowed[i] = t;
+        left -= t;
+    }
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let mut ties = ties_allowed[i];
+            let mut cols = Vec::new();
+            for j in 0..n {
+                let b = key(i * n + j);
+                if b > threshold || (b == threshold && ties > 0) {
+                    if b == threshold {
+                        ties -= 1;
+                    }
+                    cols.push(j as u32);
+                }
+            }
+            cols
+        })
+        .collect()
+}
+
+/// Per-tile counts gathered while encoding.
+#[derive(Clone, Copy, Default)]
+pub struct TileCounts {
+    flushed: u64,
+    mixed: u64,
+    zeros_lost: u64,
+    /// Per stored channel: the sum of the tile's dense values and of their
+    /// decoded values (for the mass correction of the log formats).
+    sum_source: [f64; 3],
+    sum_decoded: [f64; 3],
+}
+
+/// Encodes the three channels of the n × n row-major matrix `t` (entries
+/// finite and ≥ 0) with `kind` (module doc). Deterministic: the same input
+/// gives the same bytes.
+pub fn encode(kind: CodecKind, t: [&[f32]; 3], n: usize) -> Result<Encoded, EncodeError> {
+    let start = Instant::now();
+    kind.validate()?;
+    check_matrix(t, n)?;
+    if n > (u16::MAX as usize + 1) * TILE || n * n > u32::MAX as usize {
+        return Err(EncodeError::TooManyPatches(n));
+    }
+    let distinct = distinct_channels(t);
+    let grey = distinct.len() == 1;
+    let format = DenseFormat::of(kind, distinct.len());
+    // BC6H always stores RGB; the others store the distinct channels.
+    let stored: Vec<&[f32]> = if format == DenseFormat::Bc6h {
+        t.to_vec()
+    } else {
+        distinct.clone()
+    };
+    let ch = stored.len();
+
+    // The sparse part (log formats).
+    let (top_fraction, log_range, sparse_values) =
+        kind.log_params().unwrap_or((0.0, 0.0, SparseValues::F32));
+    let count = (top_fraction * (n * n) as f64).round() as usize;
+    let inv_max = radiosity_bakefile::codec::inverse_maxima(&stored);
+    let rows = select_top(n, count, &|k| sparse_key(&stored, &inv_max, k));
+    let mut mask = Mask {
+        bits: vec![0u64; (n * n).div_ceil(64)],
+        n,
+    };
+    let mut row_ptr = Vec::with_capacity(n + 1);
+    row_ptr.push(0u32);
+    let mut cols = Vec::new();
+    for (i, r) in rows.iter().enumerate() {
+        for &j in r {
+            let k = i * n + j as usize;
+            mask.bits[k / 64] |= 1 << (k % 64);
+            cols.push(j);
+        }
+        row_ptr.push(cols.len() as u32);
+    }
+    drop(rows);
+    let mut values = Vec::with_capacity(cols.len() * ch);
+    for (i, w) in row_ptr.windows(2).enumerate() {
+        for &j in &cols[w[0] as usize..w[1] as usize] {
+            for c in &stored {
+                values.push(c[i * n + j as usize]);
+            }
+        }
+    }
+    let mut sparse_scale = [1.0f32; 3];
+    // One channel has no exponent to share: f16 is cheaper (type doc).
+    let sparse_values = if sparse_values == SparseValues::Rgb9e5 && ch == 1 {
+        SparseValues::F16
+    } else {
+        sparse_values
+    };
+    if sparse_values == SparseValues::Rgb9e5 {
+        let m = values.iter().cloned().fold(0.0f32, f32::max);
+        sparse_scale = [pow2_scale(m); 3];
+        for v in values.chunks_exact_mut(3) {
+            let s = sparse_scale[0];
+            let packed = rgb9e5::pack([v[0] * s, v[1] * s, v[2] * s]);
+            let back = rgb9e5::unpack(packed);
+            for c in 0..3 {
+                v[c] = back[c] / s;
+            }
+        }
+    }
+    if sparse_values == SparseValues::F16 {
+        for (c, s) in sparse_scale.iter_mut().enumerate().take(ch) {
+            let m = values
+                .iter()
+                .skip(c)
+                .step_by(ch)
+                .cloned()
+                .fold(0.0f32, f32::max);
+            *s = pow2_scale(m);
+        }
+        for (k, v) in values.iter_mut().enumerate() {
+            let s = sparse_scale[k % ch];
+            *v = f16::from_f32(*v * s).to_f32() / s;
+        }
+    }
+    let (sparse_mass, total_mass) = {
+        let total: f64 = stored
+            .iter()
+            .map(|c| c.par_iter().map(|&v| v as f64).sum::<f64>())
+            .sum();
+        let sparse: f64 = values.iter().map(|&v| v as f64).sum();
+        (sparse, total)
+    };
+    let has_sparse = !cols.is_empty();
+    let sparse = Sparse {
+        row_ptr: if has_sparse { row_ptr } else { Vec::new() },
+        cols,
+        values,
+        precision: sparse_values,
+        scale: sparse_scale,
+    };
+
+    // The dense part's scales: the maximum of what is left (log formats),
+    // or a power of two (halves).
+    let dense_value = |c: usize, i: usize, j: usize| -> f32 {
+        if i < n && j < n && !(has_sparse && mask.contains(i, j)) {
+            stored[c][i * n + j]
+        } else {
+            0.0
+        }
+    };
+    let mut scale = [1.0f32; 3];
+    for (c, s) in scale.iter_mut().enumerate().take(ch) {
+        let m = (0..n)
+            .into_par_iter()
+            .map(|i| (0..n).map(|j| dense_value(c, i, j)).fold(0.0f32, f32::max))
+            .reduce(|| 0.0f32, f32::max);
+        *s = match format {
+            DenseFormat::Bc1 | DenseFormat::Bc4 => m,
+            DenseFormat::Bc6h | DenseFormat::F16 => pow2_scale(m),
+            DenseFormat::F32 => 1.0,
+        };
+    }
+    if grey && ch == 1 {
+        scale = [scale[0]; 3];
+    }
+    let log_range = if kind.log_params().is_some() && log_range == LOG_RANGE_AUTO {
+        auto_log_range(&scale[..ch], n, &dense_value)
+    } else {
+        log_range
+    };
+
+    // The tiles, in parallel; each is prepared, tested for emptiness and
+    // encoded independently, so the result does not depend on scheduling.
+    let image_size = if format.is_block() {
+        n.div_ceil(4) * 4
+    } else {
+        n
+    };
+    let tps = image_size.div_ceil(TILE);
+    let book = Codebook {
+        format,
+        channels: ch,
+        lut: std::array::from_fn(|c| {
+            if matches!(format, DenseFormat::Bc1 | DenseFormat::Bc4) {
+                log_lut(scale[c], log_range)
+            } else {
+                [0.0; 256]
+            }
+        }),
+        max: scale,
+        log_range,
+        inv_scale: scale.map(|s| 1.0 / s),
+    };
+    let tiles: Vec<(Option<Vec<u8>>, TileCounts)> = (0..tps * tps)
+        .into_par_iter()
+        .map(|k| {
+            let (tr, tc) = (k / tps, k % tps);
+            let (r0, c0) = (tr * TILE, tc * TILE);
+            let (h, w) = (TILE.min(image_size - r0), TILE.min(image_size - c0));
+            let mut vals = vec![0.0f32; h * w * ch];
+            for r in 0..h {
+                for c in 0..w {
+                    for k in 0..ch {
+                        vals[(r * w + c) * ch + k] = dense_value(k, r0 + r, c0 + c);
+                    }
+                }
+            }
+            encode_tile(&book, &vals, h, w, &scale)
+        })
+        .collect();
+
+    let mut index = TileIndex {
+        tile: TILE,
+        tiles_per_side: tps,
+        row_start: Vec::with_capacity(tps + 1),
+        cols: Vec::new(),
+        offsets: Vec::new(),
+    };
+    let mut dense = Vec::new();
+    let mut counts = TileCounts::default();
+    index.row_start.push(0);
+    for tr in 0..tps {
+        for tc in 0..tps {
+            let (bytes, tcnt) = &tiles[tr * tps + tc];
+            if let Some(bytes) = bytes {
+                index.cols.push(tc as u16);
+                index.offsets.push(dense.len() as u32);
+                dense.extend_from_slice(bytes);
+            }
+            counts.flushed += tcnt.flushed;
+            counts.mixed += tcnt.mixed;
+            counts.zeros_lost += tcnt.zeros_lost;
+            for c in 0..3 {
+                counts.sum_source[c] += tcnt.sum_source[c];
+                counts.sum_decoded[c] += tcnt.sum_decoded[c];
+            }
+        }
+        index.row_start.push(index.cols.len() as u32);
+    }
+    drop(tiles);
+    // Mass correction of the log formats (module doc): the decoded dense
+    // part keeps the sum of each channel.
+    let mut mass_correction = [1.0f64; 3];
+    if matches!(format, DenseFormat::Bc1 | DenseFormat::Bc4) {
+        for c in 0..ch {
+            if counts.sum_decoded[c] > 0.0 {
+                mass_correction[c] = counts.sum_source[c] / counts.sum_decoded[c];
+                scale[c] = (scale[c] as f64 * mass_correction[c]) as f32;
+            }
+        }
+        if ch == 1 {
+            scale = [scale[0]; 3];
+        }
+    }
+    if dense.len() > u32::MAX as usize {
+        return Err(EncodeError::DenseTooLarge(dense.len()));
+    }
+    let tiles_total = tps * tps;
+    let tiles_stored = index.cols.len();
+    let stats = EncodeStats {
+        seconds: start.elapsed().as_secs_f64(),
+        grey,
+        tiles_total,
+        tiles_stored,
+        tiles_skipped_fraction: if tiles_total > 0 {
+            (tiles_total - tiles_stored) as f64 / tiles_total as f64
+        } else {
+            0.0
+        },
+        sparse_entries: sparse.len(),
+        sparse_mass_fraction: if total_mass > 0.0 {
+            sparse_mass / total_mass
+        } else {
+            0.0
+        },
+        flushed_entries: counts.flushed,
+        mixed_zero_blocks: counts.mixed,
+        zeros_lost: counts.zeros_lost,
+        mass_correction,
+    };
+    Ok(Encoded {
+        kind,
+        n,
+        channels: ch,
+        format,
+        image_size,
+        scale,
+        log_range: if kind.log_params().is_some() {
+            log_range
+        } else {
+            0.0
+        },
+        index,
+        dense,
+        sparse,
+        col_scale: Vec::new(),
+        stats,
+    })
+}
+
+/// Encodes one tile of dense values (texel-major, `channels` per texel);
+/// the bytes are `None` when the tile stores nothing (every stored value
+/// would be 0). Also decodes the result to count zeros the format did not
+/// keep.
+fn encode_tile(
+    book: &Codebook,
+    vals: &[f32],
+    h: usize,
+    w: usize,
+    scale: &[f32; 3],
+) -> (Option<Vec<u8>>, TileCounts) {
+    let ch = book.channels;
+    let mut counts = TileCounts::default();
+    let bytes = match book.format {
+        DenseFormat::Bc1 | DenseFormat::Bc4 => {
+            let q: Vec<u8> = vals
+                .iter()
+                .enumerate()
+                .map(|(k, &v)| log_byte(v, scale[k % ch], book.log_range))
+                .collect();
+            counts.flushed = vals
+                .iter()
+                .zip(&q)
+                .filter(|&(&v, &b)| v > 0.0 && b == 0)
+                .count() as u64;
+            if q.iter().all(|&b| b == 0) {
+                return (None, counts);
+            }
+            if book.format == DenseFormat::Bc1 {
+                encode_bc1_tile(&q, h, w, &mut counts)
+            } else {
+                encode_bc4_tile(&q, h, w, ch, &mut counts)
+            }
+        }
+        DenseFormat::Bc6h | DenseFormat::F16 => {
+            let halves: Vec<u16> = vals
+                .iter()
+                .enumerate()
+                .map(|(k, &v)| f16::from_f32(v * scale[k % ch]).to_bits())
+                .collect();
+            counts.flushed = vals
+                .iter()
+                .zip(&halves)
+                .filter(|&(&v, &b)| v > 0.0 && b == 0)
+                .count() as u64;
+            if halves.iter().all(|&b| b == 0) {
+                return (None, counts);
+            }
+            if book.format == DenseFormat::F16 {
+                halves.iter().flat_map(|b| b.to_le_bytes()).collect()
+            } else {
+                // RGBA halves, alpha 1.0 (ignored by BC6H).
+                let one = f16::ONE.to_bits();
+                let mut rgba = Vec::with_capacity(h * w * 8);
+                for t in halves.chunks(3) {
+                    for &b in t.iter().chain(std::iter::once(&one)) {
+                        rgba.extend_from_slice(&b.to_le_bytes());
+                    }
+                }
+                let surface = intel_tex_2::RgbaSurface {
+                    data: &rgba,
+                    width: w as u32,
+                    height: h as u32,
+                    stride: (w * 8) as u32,
+                };
+                intel_tex_2::bc6h::compress_blocks(&intel_tex_2::bc6h::basic_settings(), &surface)
+            }
+        }
+        DenseFormat::F32 => {
+            if vals.iter().all(|&v| v == 0.0) {
+                return (None, counts);
+            }
+            vals.iter().flat_map(|v| v.to_le_bytes()).collect()
+        }
+    };
+    // Zeros the format did not keep.
+    let mut decoded = vec![0.0f32; h * w * ch];
+    decode_tile_bytes(book, &bytes, h, w, &mut decoded);
+    counts.zeros_lost = vals
+        .iter()
+        .zip(&decoded)
+        .filter(|&(&v, &d)| v == 0.0 && d != 0.0)
+        .count() as u64;
+    for (k, (&v, &d)) in vals.iter().zip(&decoded).enumerate() {
+        counts.sum_source[k % ch] += v as f64;
+        counts.sum_decoded[k % ch] += d as f64;
+    }
+    (Some(bytes), counts)
+}

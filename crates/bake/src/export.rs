@@ -1,0 +1,112 @@
+//! The bake's inspection files (`--export`): `patches.csv` and
+//! `patches.png` (the kept patches, in matrix order), `F.npy`, `T.npy`,
+//! `T_decoded.npy` and `albedo.npy`.
+
+use super::form_factor::{self, FormFactors};
+use super::pieces::PieceGeo;
+use super::preview;
+use super::transfer::Transfer;
+use anyhow::Context as _;
+use radiosity_core::npy;
+use radiosity_core::patch::Patch;
+use std::io::Write;
+use std::path::Path;
+
+/// The files [`export`] writes into its folder (`T_decoded.npy` is written
+/// by the bake beside them).
+pub const FILES: [&str; 6] = [
+    "patches.csv",
+    "patches.png",
+    "F.npy",
+    "T.npy",
+    "T_decoded.npy",
+    "albedo.npy",
+];
+
+/// Writes the inspection files: `patches.csv` (the kept patches, in matrix
+/// order), `patches.png` (the pieces, each with the index in `patches` of its
+/// patch, drawn by [`preview::render_pieces`]), `F.npy` (n × n), `T.npy` (3 × n × n,
+/// channel-major) and `albedo.npy` (n × 3). Refuses, before writing
+/// anything, when `T.npy` would exceed [`form_factor::NPY_MAX_BYTES`].
+#[allow(clippy::too_many_arguments)]
+pub fn export(
+    dir: &Path,
+    scene_path: &Path,
+    bounds: ([f32; 3], [f32; 3]),
+    patches: &[Patch],
+    pieces: (&[PieceGeo], &[Option<u32>]),
+    ff: &FormFactors,
+    tr: &Transfer,
+    albedo: &[[f32; 3]],
+) -> anyhow::Result<()> {
+    let n = ff.n;
+    let t_bytes = 3 * (n as u64).pow(2) * 4;
+    if t_bytes > form_factor::NPY_MAX_BYTES {
+        anyhow::bail!(
+            "refusing to export T.npy: 3 × {n} × {n} float32 takes {t_bytes} bytes, above the \
+             {} byte export limit; use fewer patches or no --export",
+            form_factor::NPY_MAX_BYTES
+        );
+    }
+    export_patches(dir, patches)?;
+    let camera = scene_camera(scene_path, bounds)?;
+    let png = dir.join("patches.png");
+    preview::render_pieces(pieces.0, pieces.1, patches, &camera, 800, 600)
+        .save(&png)
+        .with_context(|| format!("writing {}", png.display()))?;
+    form_factor::write_f_npy(&dir.join("F.npy"), ff)?;
+    let mut t = Vec::with_capacity(3 * n * n);
+    for c in 0..3 {
+        t.extend_from_slice(tr.channel(c));
+    }
+    let path = dir.join("T.npy");
+    npy::write_f32(&path, &[3, n, n], &t).with_context(|| format!("writing {}", path.display()))?;
+    let flat: Vec<f32> = albedo.iter().flatten().copied().collect();
+    let path = dir.join("albedo.npy");
+    npy::write_f32(&path, &[n, 3], &flat).with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// The camera of the scene's camera/lights file (`NAME.json` beside
+/// `NAME.obj`) if there is one, else a default view of the bounds. A file
+/// that exists but is invalid is an error.
+pub fn scene_camera(
+    scene: &Path,
+    bounds: ([f32; 3], [f32; 3]),
+) -> anyhow::Result<radiosity_core::scene_config::Camera> {
+    let json = scene.with_extension("json");
+    if json.exists() {
+        Ok(radiosity_core::scene_config::load(&json)?.camera)
+    } else {
+        Ok(preview::default_camera(bounds))
+    }
+}
+
+/// The header of `patches.csv` (one row per patch, in matrix order).
+pub const PATCHES_CSV_HEADER: &str =
+    "index,cx,cy,cz,nx,ny,nz,area,albedo_r,albedo_g,albedo_b,emission_r,emission_g,emission_b";
+
+/// Writes `dir/patches.csv`.
+pub fn export_patches(dir: &Path, patches: &[Patch]) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let path = dir.join("patches.csv");
+    let file =
+        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+    let mut w = std::io::BufWriter::new(file);
+    let io = |e| anyhow::Error::from(e).context(format!("writing {}", path.display()));
+    writeln!(w, "{PATCHES_CSV_HEADER}").map_err(io)?;
+    for (i, p) in patches.iter().enumerate() {
+        let [cx, cy, cz] = p.centre;
+        let [nx, ny, nz] = p.normal;
+        let [ar, ag, ab] = p.albedo;
+        let [er, eg, eb] = p.emission;
+        writeln!(
+            w,
+            "{i},{cx},{cy},{cz},{nx},{ny},{nz},{},{ar},{ag},{ab},{er},{eg},{eb}",
+            p.area
+        )
+        .map_err(io)?;
+    }
+    w.flush().map_err(io)?;
+    Ok(())
+}

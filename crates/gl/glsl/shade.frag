@@ -1,0 +1,94 @@
+// Shading per fragment (host: crates/gl/src/shade.rs; CPU reference:
+// crates/runtime/src/render.rs). light.glsl and surface.glsl are prepended.
+//
+// The radiance of the view (final L = rho/pi (D + H) + Le, direct, indirect,
+// patches) in linear units; alpha is 1 where a front-facing surface is
+// seen (the pixels automatic exposure averages over) and 0 elsewhere.
+// Tone mapping is the CPU's (runtime/tonemap.rs) on the read-back image.
+
+layout(std430, binding = 0) readonly buffer TriangleNormal { float triangle_normal[]; }; // 4 per triangle: normal, twin index bits
+layout(std430, binding = 6) readonly buffer H { float h[]; };              // 3 n, channel-major
+layout(std430, binding = 7) readonly buffer PatchAlbedo { float patch_albedo[]; }; // 3 n, channel-major
+
+uniform sampler2D albedo_texture;
+uniform bool has_texture;
+uniform vec3 kd;
+uniform vec3 material_albedo;
+uniform float albedo_max;
+uniform vec3 emitted;     // Le = scale Ke / pi of the draw's material
+uniform vec3 eye;
+uniform uint n;
+uniform int view_mode;    // 0 final, 1 direct, 2 indirect, 3 patches, 4 weights
+
+in vec3 v_position;
+in vec2 v_texcoord;
+flat in uint v_triangle;
+
+layout(location = 0) out vec4 radiance;
+
+const float PI = 3.14159265358979;
+
+vec3 normal_of(uint t) {
+    return vec3(triangle_normal[4u * t], triangle_normal[4u * t + 1u], triangle_normal[4u * t + 2u]);
+}
+
+void main() {
+    uint t = v_triangle;
+    vec3 x = v_position;
+    vec3 ng = normal_of(t);
+    if (dot(ng, x - eye) >= 0.0) {
+        // The coincident twin faces the camera, if the face has one
+        // (Scene::twin); else the face is seen from behind: black, not
+        // covered.
+        uint twin = floatBitsToUint(triangle_normal[4u * t + 3u]);
+        if (twin == 0xFFFFFFFFu) {
+            radiance = vec4(0.0);
+            return;
+        }
+        t = twin;
+        ng = normal_of(t);
+    }
+    vec3 rho = has_texture
+        ? clamp(kd * texture(albedo_texture, vec2(v_texcoord.x, 1.0 - v_texcoord.y)).rgb, 0.0, albedo_max)
+        : material_albedo;
+    uvec4 wp;
+    vec4 ww;
+    int how = surface_weights(t, x, wp, ww);
+    vec3 hx = vec3(0.0);
+    for (int k = 0; k < 4; k++) {
+        if (ww[k] > 0.0) {
+            uint p = wp[k];
+            hx += ww[k] * vec3(h[p], h[n + p], h[2u * n + p]);
+        }
+    }
+    vec3 dx = vec3(0.0);
+    if (view_mode == 0 || view_mode == 1) dx = direct_irradiance(x, ng);
+    vec3 r = rho / PI;
+    vec3 l;
+    if (view_mode == 0) l = r * (dx + hx) + emitted;
+    else if (view_mode == 1) l = r * dx + emitted;
+    else if (view_mode == 2) l = r * hx;
+    else if (view_mode == 4) {
+        // runtime/render.rs patch_colour, blended by the weights.
+        l = vec3(0.0);
+        if (how != LOOKUP_UNMAPPED) {
+            for (int k = 0; k < 4; k++) {
+                if (ww[k] > 0.0) {
+                    uint hh = wp[k] * 2654435761u;
+                    vec3 col = 0.2 + 0.8 * vec3(float(hh & 255u), float((hh >> 8) & 255u),
+                                                float((hh >> 16) & 255u)) / 255.0;
+                    l += ww[k] * col;
+                }
+            }
+        }
+    }
+    else {
+        if (how == LOOKUP_UNMAPPED) l = vec3(0.0);
+        else {
+            uint p = wp[0];
+            l = vec3(patch_albedo[p], patch_albedo[n + p], patch_albedo[2u * n + p]) / PI
+                * vec3(h[p], h[n + p], h[2u * n + p]);
+        }
+    }
+    radiance = vec4(l, 1.0);
+}

@@ -1,5 +1,0 @@
-// Shadow maps: depth only (src/gl/shadow.rs). Both sides of a triangle
-// cast, as the CPU's shadow rays are blocked by either side.
-
-void main() {
-}
