@@ -13,8 +13,10 @@
 // NaN-aware tests: `!(x > 0.0)` is true for NaN, which is the point.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod assemble;
 pub mod budget;
 pub mod cache;
+pub mod codec_choice;
 pub mod compute;
 pub mod config;
 pub mod cover;
@@ -37,6 +39,7 @@ pub mod transfer;
 pub mod voxelize;
 pub mod winding;
 
+pub use codec_choice::{column_scales, error_samples, Encoding};
 pub use config::{BakeConfig, CodecChoice, ComputeChoice, DEFAULT_ERROR_LIGHTS, ERROR_LIGHTS_SEED};
 pub use report::{BakeReport, CodecSummary, StageTime};
 
@@ -44,23 +47,17 @@ use crate::compute::Backend;
 use crate::compute::Gpu;
 use anyhow::Context as _;
 use form_factor::FormFactors;
-use radiosity_bakefile::baked::stored_scene_path;
 use radiosity_bakefile::codec::Encoded;
-use radiosity_bakefile::records::{
-    BakeInfo, BouncesRecord, OptionsRecord, INFO_RECORD_VERSION, OPTIONS_RECORD_VERSION,
-};
-use radiosity_bakefile::{self as bakefile, BakeFile, PatchRecord, SceneHash};
-use radiosity_core::direct;
+use radiosity_bakefile::{self as bakefile, BakeFile, SceneHash};
 use radiosity_core::npy;
 use radiosity_core::patch::Patch;
 use radiosity_core::permutation::Permutation;
 use radiosity_core::scene::{self};
-use rayon::prelude::*;
 use reorder::ReorderMethod;
 use report::{bar, spinner};
 use std::path::Path;
 use std::time::Instant;
-use transfer::{Bounces, Transfer};
+use transfer::Transfer;
 use voxelize::Resolution;
 
 /// The result of a bake.
@@ -138,134 +135,13 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         seconds: t.elapsed().as_secs_f64(),
     });
 
-    // Stage 6: encode, measured against the exact matrix over seeded lights.
+    // Stage 6: the codec, chosen and measured (`codec_choice`).
     let t = Instant::now();
-    let b0_samples: Vec<[Vec<f32>; 3]> = if config.error_lights > 0 {
-        progress(&format!(
-            "direct light from {} seeded random lights (for the compression error)",
-            config.error_lights
-        ));
-        error_samples(&scene, &patches, config.error_lights)
-            .iter()
-            .map(|b| std::array::from_fn(|c| perm.apply_vec(&b[c])))
-            .collect()
-    } else {
-        Vec::new()
-    };
-    // Column scales (`Encoded::col_scale`): each column divided by its
-    // patch's area relative to the largest. They are a second setting
-    // beside the codec's, tried where the error is measured and the codec
-    // is a log one (a plain f32 or f16 matrix would only gain a rounding):
-    // first the plain matrix, then, in place, `T' = T diag(1/s)` with the
-    // samples `s ∘ B0`; the cheaper result within the bound is kept, at
-    // equal bytes the smaller error (for a fixed codec, the smaller
-    // error). On Sponza at 3,946 patches the scales halve BC1's error at a
-    // given top fraction; at 12,872, and on the interior, they raise it
-    // (docs/runtime.md).
-    let scales =
-        column_scales(&perm.apply_vec(&patches.iter().map(|p| p.area).collect::<Vec<f64>>()));
-    let scaled_samples: Vec<[Vec<f32>; 3]> = b0_samples
-        .iter()
-        .map(|b| radiosity_bakefile::codec::scaled_input([&b[0], &b[1], &b[2]], &scales))
-        .collect();
-    let sp = spinner("encode");
-    let (encoded, h_error, chosen_by) = match config.codec {
-        CodecChoice::Fixed(kind) => {
-            progress(&format!("encoding with {kind}"));
-            let (e, err) = {
-                let tp = channels_of(&permuted);
-                let e = encode::encode(kind, tp, n)?;
-                let err = (!b0_samples.is_empty()).then(|| {
-                    let reference = exact_h(tp, n, &b0_samples);
-                    encode::h_error(&e, &reference, &b0_samples)
-                });
-                (e, err)
-            };
-            let (e, err) = match err {
-                Some(err0) if kind.log_params().is_some() => {
-                    scale_columns(&mut permuted, &scales, n);
-                    let tp = channels_of(&permuted);
-                    let mut e1 = encode::encode(kind, tp, n)?;
-                    let reference = exact_h(tp, n, &scaled_samples);
-                    let err1 = encode::h_error(&e1, &reference, &scaled_samples);
-                    progress(&format!(
-                        "  H error {:.3} %, with columns scaled by patch area {:.3} %",
-                        100.0 * err0,
-                        100.0 * err1
-                    ));
-                    if err1 < err0 {
-                        e1.col_scale = scales;
-                        (e1, Some(err1))
-                    } else {
-                        (e, Some(err0))
-                    }
-                }
-                other => (e, other),
-            };
-            (e, err, "fixed".to_string())
-        }
-        CodecChoice::MaxError(max) => {
-            progress(&format!(
-                "choosing the cheapest codec with H error ≤ {max} ({} candidates, then with \
-                 columns scaled by patch area)",
-                encode::default_candidates().len()
-            ));
-            let (k0, e0, err0) = encode::choose_with(
-                channels_of(&permuted),
-                n,
-                &b0_samples,
-                max,
-                &[],
-                &mut |kind, err, bpe| {
-                    progress(&format!(
-                        "  {kind}: H error {:.3} %, {bpe:.4} bytes/entry",
-                        100.0 * err
-                    ))
-                },
-            )?;
-            // Scaled, the log settings expected to cost no more than the
-            // plain choice.
-            let cheaper = encode::measure::log_candidates_no_dearer_than(k0);
-            let scaled = if cheaper.is_empty() {
-                None
-            } else {
-                scale_columns(&mut permuted, &scales, n);
-                match encode::choose_with(
-                    channels_of(&permuted),
-                    n,
-                    &scaled_samples,
-                    max,
-                    &cheaper,
-                    &mut |kind, err, bpe| {
-                        progress(&format!(
-                            "  {kind}, columns scaled: H error {:.3} %, {bpe:.4} bytes/entry",
-                            100.0 * err
-                        ))
-                    },
-                ) {
-                    Ok(chosen) => Some(chosen),
-                    // No scaled setting within the bound: the plain one stays.
-                    Err(encode::measure::ChooseError::NoCandidate { .. }) => None,
-                    Err(e) => return Err(e.into()),
-                }
-            };
-            match scaled {
-                // The cheaper matrix, or at equal bytes the smaller error;
-                // the scales' 4 bytes per patch (4/n bytes per entry) are
-                // not held against it.
-                Some((_, mut e1, err1))
-                    if e1.bytes_total() < e0.bytes_total()
-                        || (e1.bytes_total() == e0.bytes_total() && err1 < err0) =>
-                {
-                    e1.col_scale = scales;
-                    (e1, Some(err1), format!("max-error {max}, columns scaled"))
-                }
-                _ => (e0, Some(err0), format!("max-error {max}")),
-            }
-        }
-    };
-    sp.finish_and_clear();
-    let summary = CodecSummary::of(&encoded, chosen_by, h_error, b0_samples.len());
+    let Encoding {
+        encoded,
+        summary,
+        error_lights,
+    } = codec_choice::encode(config, &scene, &patches, &perm, &mut permuted, n, progress)?;
     stages.push(StageTime {
         stage: "encode",
         seconds: t.elapsed().as_secs_f64(),
@@ -316,60 +192,25 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
         seconds: near_field_stats.seconds,
     });
 
-    // Stage 8: the bake file.
-    let options = OptionsRecord {
-        record_version: OPTIONS_RECORD_VERSION,
-        target_patches: match config.resolution {
-            Resolution::Patches(p) => Some(p as u64),
-            Resolution::VoxelSize(_) => None,
-        },
-        voxel_size: vox.stats.voxel_size,
-        ff_method: config.form_factor.method.name().into(),
-        ff_rays_per_patch: config.form_factor.rays_per_patch,
-        ff_samples: config.form_factor.samples,
-        ff_rays: config.form_factor.rays,
-        ff_quadrature_tol: config.form_factor.quadrature_tol,
-        bounces: match config.transfer.bounces {
-            Bounces::K(k) => BouncesRecord::K(k),
-            Bounces::Infinite => BouncesRecord::INFINITE,
-        },
-        reorder: method.name(),
-        codec: encoded.kind.name(),
-        codec_choice: summary.chosen_by.clone(),
-        error_lights: b0_samples.len() as u64,
-        error_lights_seed: ERROR_LIGHTS_SEED,
-        two_sided: config.two_sided,
-        twinned: winding.twinned.clone(),
-    };
-    let scene_stored = match &config.output {
-        Some(out) => stored_scene_path(out, &config.scene),
-        None => config.scene.display().to_string(),
-    };
-    let info = BakeInfo {
-        record_version: INFO_RECORD_VERSION,
-        generator: format!("radiosity {}", env!("CARGO_PKG_VERSION")),
-        scene: scene_stored,
-        triangles: scene.triangles.len() as u64,
-        vertices: scene.positions.len() as u64,
-        patches: n as u64,
-        grey: tr.grey,
-        spectral_bound: tr.stats.spectral_bound,
-        h_error,
-        mesh_map_fallbacks: map.stats.fallbacks,
-        mesh_map_unmapped: map.stats.unmapped,
-    };
-    let file = BakeFile {
-        options_json: serde_json::to_string(&options).expect("options serialize"),
+    // Stage 8: the bake file (`assemble`).
+    let file = assemble::bake_file(assemble::Parts {
+        config,
+        scene: &scene,
         scene_hash,
-        patches: patches.iter().map(PatchRecord::from).collect(),
-        permutation: perm.order.clone(),
-        codec: encoded.to_blob(),
-        mesh_map: map.entries.clone(),
+        voxel_size: vox.stats.voxel_size,
+        reorder: method.name(),
+        encoded: &encoded,
+        summary: &summary,
+        error_lights,
+        twinned: &winding.twinned,
+        transfer: &tr,
+        mesh_map: &map,
+        patches: &patches,
+        permutation: &perm,
         surface_map,
         samples,
         near_field,
-        info_json: serde_json::to_string(&info).expect("info serializes"),
-    };
+    });
     if let Some(out) = &config.output {
         progress(&format!("writing {}", out.display()));
         let t = Instant::now();
@@ -630,50 +471,4 @@ fn backend_of(gpu: &Option<Gpu>) -> Backend<'_> {
         Some(g) => Backend::OpenCl(g),
         None => Backend::Cpu,
     }
-}
-
-/// `B0 = ρ ∘ D + E` (f32, per channel) for `count` seeded random lights
-/// ([`direct::random_lights`] with [`ERROR_LIGHTS_SEED`]), direct light with
-/// shadows on the CPU, for the patches in matrix order.
-pub fn error_samples(scene: &scene::Scene, patches: &[Patch], count: usize) -> Vec<[Vec<f32>; 3]> {
-    direct::light_samples(scene, patches, count, ERROR_LIGHTS_SEED)
-}
-
-/// The column scales of a matrix whose patches have areas `area` (matrix
-/// order): each area relative to the largest, so in (0, 1] (a patch of
-/// zero area, which the voxelizer does not keep, would get the smallest
-/// positive f32 rather than 0).
-pub fn column_scales(area: &[f64]) -> Vec<f32> {
-    let max = area.iter().cloned().fold(0.0f64, f64::max);
-    if !(max > 0.0 && max.is_finite()) {
-        return vec![1.0; area.len()];
-    }
-    area.iter()
-        .map(|&a| ((a / max) as f32).max(f32::MIN_POSITIVE))
-        .collect()
-}
-
-/// The three channels of a matrix held as 1 or 3 vectors.
-fn channels_of(m: &[Vec<f32>]) -> [&[f32]; 3] {
-    std::array::from_fn(|c| m[c.min(m.len() - 1)].as_slice())
-}
-
-/// Divides each column `j` of the n × n row-major channels `m` by `s[j]`,
-/// in place.
-fn scale_columns(m: &mut [Vec<f32>], s: &[f32], n: usize) {
-    for c in m {
-        c.par_chunks_mut(n.max(1)).for_each(|row| {
-            for (v, s) in row.iter_mut().zip(s) {
-                *v /= s;
-            }
-        });
-    }
-}
-
-/// The exact `T · B0` in f64 for every sample and channel.
-fn exact_h(t: [&[f32]; 3], n: usize, samples: &[[Vec<f32>; 3]]) -> Vec<[Vec<f64>; 3]> {
-    samples
-        .iter()
-        .map(|b| std::array::from_fn(|c| encode::mat_vec(t[c], n, &b[c])))
-        .collect()
 }
