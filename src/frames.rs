@@ -70,7 +70,8 @@ pub(crate) fn bake_for(
     config.compute = ComputeChoice::OpenCl(DeviceSelection::from_flag_or_env(device.device)?);
     config.validate().map_err(with_flag)?;
     let (path, _) =
-        radiosity::bake::cache::bake_or_reuse(&config, &mut |l| eprintln!("[bake] {l}"))?;
+        radiosity::bake::cache::bake_or_reuse(&config, &mut |l| eprintln!("[bake] {l}"))
+            .with_context(|| format!("baking {}", input.display()))?;
     Ok(path)
 }
 

@@ -322,10 +322,8 @@ fn bake(args: BakeArgs) -> anyhow::Result<()> {
     }
     let out = bake::run(&config, &mut |line| eprintln!("[bake] {line}")).map_err(|e| {
         // The library names the remedy "two-sided"; here it is a flag.
-        let facing = e
-            .downcast_ref::<bake::error::BakeError>()
-            .is_some_and(|b| matches!(b, bake::error::BakeError::Facing { .. }));
-        let e = e.context(format!("baking {}", config.scene.display()));
+        let facing = matches!(e, bake::error::BakeError::Facing { .. });
+        let e = anyhow::Error::from(e).context(format!("baking {}", config.scene.display()));
         if facing {
             e.context("the faces see nothing (to bake patches on both sides, pass --two-sided)")
         } else {

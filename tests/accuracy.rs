@@ -358,7 +358,12 @@ fn an_outward_wound_box_is_refused_and_bakes_two_sided() {
     let err = bake::run(&c, &mut |_| {})
         .err()
         .expect("an outward-wound box must not bake");
-    let root = err.root_cause().to_string();
+    // A typed error: the facing stage's, whose message names the cause.
+    assert!(
+        matches!(err, bake::error::BakeError::Facing { .. }),
+        "{err}"
+    );
+    let root = err.to_string();
     assert!(
         root.contains("wound away from each other") && root.contains("two-sided"),
         "{root}"
@@ -397,7 +402,12 @@ fn a_room_on_a_huge_ground_is_refused_naming_the_voxel() {
     let err = bake::run(&config(&obj, Resolution::Patches(400)), &mut |_| {})
         .err()
         .expect("a room inside one voxel must not bake");
-    let root = err.root_cause().to_string();
+    // A typed error: the facing stage's, whose message names the cause.
+    assert!(
+        matches!(err, bake::error::BakeError::Facing { .. }),
+        "{err}"
+    );
+    let root = err.to_string();
     assert!(
         root.contains("no patch sees another surface")
             && root.contains("voxels")

@@ -65,8 +65,17 @@ fn bake(obj: &Path, resolution: Resolution) -> Runtime {
 /// The bundled Cornell box, copied to a temporary directory and baked once
 /// for all the tests of this file (they only read the bake).
 fn cornell() -> (Runtime, SceneConfig) {
+    let obj = cornell_obj();
+    let baked = Baked::load(&obj.with_extension("rad")).unwrap();
+    let rt = Runtime::new(baked, scene::load(obj).unwrap(), RuntimeOptions::default());
+    let config = scene_config::load(&obj.with_extension("json")).unwrap();
+    (rt, config)
+}
+
+/// The copied Cornell box's OBJ, its bake beside it (`.rad`), made once.
+fn cornell_obj() -> &'static std::path::PathBuf {
     static BAKE: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
-    let obj = BAKE.get_or_init(|| {
+    BAKE.get_or_init(|| {
         let src = common::bundled("cornell_box");
         let dir = common::temp_dir("gl-cornell");
         for f in ["cornell_box.obj", "cornell_box.mtl", "cornell_box.json"] {
@@ -75,11 +84,7 @@ fn cornell() -> (Runtime, SceneConfig) {
         let obj = dir.join("cornell_box.obj");
         drop(bake(&obj, Resolution::VoxelSize(40.0)));
         obj
-    });
-    let baked = Baked::load(&obj.with_extension("rad")).unwrap();
-    let rt = Runtime::new(baked, scene::load(obj).unwrap(), RuntimeOptions::default());
-    let config = scene_config::load(&obj.with_extension("json")).unwrap();
-    (rt, config)
+    })
 }
 
 /// Relative RMS difference `sqrt(Σ (a − b)² / Σ b²)` over three channels.
@@ -1026,4 +1031,29 @@ fn gl_faces_given_a_back_side_render_as_the_cpus() {
         assert!(e < 0.02, "{view:?}: relative RMS {e}");
     }
     r.delete(gl);
+}
+
+/// `examples/gl_embed.rs`: a renderer made in a context the application
+/// owns.
+#[path = "../examples/gl_embed.rs"]
+#[allow(dead_code)]
+mod gl_embed;
+
+/// An application that owns its GL context (`examples/gl_embed.rs`): the
+/// renderer uploads into it, lights a frame and gives back `H`, the CPU
+/// run time's within the bound the full GL frame above is held to (1e-3
+/// relative RMS: `D` in f32 against the CPU's f64, then the gather's f32
+/// sums).
+#[test]
+fn a_renderer_in_the_applications_own_context_gives_the_cpus_light() {
+    let ctx = Headless::new().expect("a GL context (scripts/setup installs Mesa EGL)");
+    let (_, config) = cornell();
+    let obj = cornell_obj();
+    let c = gl_embed::run(&ctx.gl, &obj.with_extension("rad"), &config.lights).unwrap();
+    let e = rel_rms(&c.gpu, &c.cpu);
+    assert!(e < 1e-3, "GPU H against the CPU's: relative RMS {e}");
+    assert!(
+        c.cpu[0].iter().any(|&h| h > 0.0),
+        "the light reaches the patches"
+    );
 }

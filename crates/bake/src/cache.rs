@@ -8,7 +8,7 @@
 //! options are the ones asked for.
 
 use super::{run, BakeConfig};
-use anyhow::Context as _;
+use crate::error::BakeError;
 use radiosity_bakefile::baked::Baked;
 use radiosity_bakefile::hash::Fnv1a64;
 use radiosity_bakefile::SceneHash;
@@ -16,7 +16,7 @@ use radiosity_core::scene;
 use std::path::{Path, PathBuf};
 
 /// The cache directory (module doc), created if missing.
-pub fn directory() -> anyhow::Result<PathBuf> {
+pub fn directory() -> Result<PathBuf, BakeError> {
     let dir = if let Some(d) = std::env::var_os("RADIOSITY_CACHE_DIR") {
         PathBuf::from(d)
     } else if let Some(d) = std::env::var_os("XDG_CACHE_HOME") {
@@ -24,17 +24,22 @@ pub fn directory() -> anyhow::Result<PathBuf> {
     } else if let Some(h) = std::env::var_os("HOME") {
         PathBuf::from(h).join(".cache").join("radiosity")
     } else {
-        anyhow::bail!(
-            "no cache directory: set RADIOSITY_CACHE_DIR (or HOME) to keep bakes of scenes"
-        );
+        return Err(BakeError::InvalidOption {
+            option: "bake cache directory",
+            value: "unset".into(),
+            expected: "RADIOSITY_CACHE_DIR, XDG_CACHE_HOME or HOME set in the environment".into(),
+        });
     };
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("creating the bake cache directory {}", dir.display()))?;
+    std::fs::create_dir_all(&dir).map_err(|source| BakeError::Io {
+        what: "create the bake cache directory",
+        path: dir.clone(),
+        source,
+    })?;
     Ok(dir)
 }
 
 /// The cached bake's path for `config` (its scene is hashed).
-pub fn path_for(config: &BakeConfig, dir: &Path) -> anyhow::Result<PathBuf> {
+pub fn path_for(config: &BakeConfig, dir: &Path) -> Result<PathBuf, BakeError> {
     let s = scene::load(&config.scene)?;
     let hash = SceneHash::of_scene(&s)?;
     let mut h = Fnv1a64::new();
@@ -53,7 +58,7 @@ pub fn path_for(config: &BakeConfig, dir: &Path) -> anyhow::Result<PathBuf> {
 pub fn bake_or_reuse(
     config: &BakeConfig,
     progress: &mut dyn FnMut(&str),
-) -> anyhow::Result<(PathBuf, bool)> {
+) -> Result<(PathBuf, bool), BakeError> {
     let dir = directory()?;
     let path = path_for(config, &dir)?;
     if path.exists() {
@@ -67,6 +72,6 @@ pub fn bake_or_reuse(
     }
     let mut c = config.clone();
     c.output = Some(path.clone());
-    run(&c, progress).with_context(|| format!("baking {}", config.scene.display()))?;
+    run(&c, progress)?;
     Ok((path, false))
 }

@@ -6,6 +6,7 @@
 
 use crate::config::{BakeConfig, CodecChoice, ERROR_LIGHTS_SEED};
 use crate::encode;
+use crate::error::BakeError;
 use crate::report::{spinner, CodecSummary};
 use radiosity_bakefile::codec::Encoded;
 use radiosity_core::direct;
@@ -34,7 +35,7 @@ pub fn encode(
     permuted: &mut [Vec<f32>],
     n: usize,
     progress: &mut dyn FnMut(&str),
-) -> anyhow::Result<Encoding> {
+) -> Result<Encoding, BakeError> {
     let b0_samples: Vec<[Vec<f32>; 3]> = if config.error_lights > 0 {
         progress(&format!(
             "direct light from {} seeded random lights (for the compression error)",

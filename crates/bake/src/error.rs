@@ -52,6 +52,18 @@ pub enum BakeError {
     /// An inspection file that cannot be written.
     #[error("cannot write {path}: {detail}")]
     Export { path: PathBuf, detail: String },
+    /// A file or directory the bake needs that cannot be made or written
+    /// (`what`: "create the output directory", ...).
+    #[error("cannot {what} {path}: {source}")]
+    Io {
+        what: &'static str,
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The scene's camera-and-lights file is invalid (it names the file).
+    #[error(transparent)]
+    Config(#[from] radiosity_core::scene_config::ConfigError),
     #[error(transparent)]
     Scene(#[from] SceneError),
     #[error(transparent)]

@@ -6,7 +6,7 @@ use super::form_factor::{self, FormFactors};
 use super::pieces::PieceGeo;
 use super::preview;
 use super::transfer::Transfer;
-use anyhow::Context as _;
+use crate::error::BakeError;
 use radiosity_core::npy;
 use radiosity_core::patch::Patch;
 use std::io::Write;
@@ -38,32 +38,38 @@ pub fn export(
     ff: &FormFactors,
     tr: &Transfer,
     albedo: &[[f32; 3]],
-) -> anyhow::Result<()> {
+) -> Result<(), BakeError> {
     let n = ff.n;
     let t_bytes = 3 * (n as u64).pow(2) * 4;
     if t_bytes > form_factor::NPY_MAX_BYTES {
-        anyhow::bail!(
-            "refusing to export T.npy: 3 × {n} × {n} float32 takes {t_bytes} bytes, above the \
-             {} byte export limit; use fewer patches or no --export",
-            form_factor::NPY_MAX_BYTES
-        );
+        return Err(BakeError::TooLarge {
+            stage: "export",
+            detail: format!(
+                "refusing to export T.npy: 3 × {n} × {n} float32 takes {t_bytes} bytes, above \
+                 the {} byte export limit; use fewer patches or no export",
+                form_factor::NPY_MAX_BYTES
+            ),
+        });
     }
     export_patches(dir, patches)?;
     let camera = scene_camera(scene_path, bounds)?;
     let png = dir.join("patches.png");
     preview::render_pieces(pieces.0, pieces.1, patches, &camera, 800, 600)
         .save(&png)
-        .with_context(|| format!("writing {}", png.display()))?;
+        .map_err(|e| BakeError::Export {
+            path: png.clone(),
+            detail: e.to_string(),
+        })?;
     form_factor::write_f_npy(&dir.join("F.npy"), ff)?;
     let mut t = Vec::with_capacity(3 * n * n);
     for c in 0..3 {
         t.extend_from_slice(tr.channel(c));
     }
     let path = dir.join("T.npy");
-    npy::write_f32(&path, &[3, n, n], &t).with_context(|| format!("writing {}", path.display()))?;
+    npy::write_f32(&path, &[3, n, n], &t).map_err(|e| export_error(&path, e))?;
     let flat: Vec<f32> = albedo.iter().flatten().copied().collect();
     let path = dir.join("albedo.npy");
-    npy::write_f32(&path, &[n, 3], &flat).with_context(|| format!("writing {}", path.display()))?;
+    npy::write_f32(&path, &[n, 3], &flat).map_err(|e| export_error(&path, e))?;
     Ok(())
 }
 
@@ -73,7 +79,7 @@ pub fn export(
 pub fn scene_camera(
     scene: &Path,
     bounds: ([f32; 3], [f32; 3]),
-) -> anyhow::Result<radiosity_core::scene_config::Camera> {
+) -> Result<radiosity_core::scene_config::Camera, BakeError> {
     let json = scene.with_extension("json");
     if json.exists() {
         Ok(radiosity_core::scene_config::load(&json)?.camera)
@@ -87,13 +93,16 @@ pub const PATCHES_CSV_HEADER: &str =
     "index,cx,cy,cz,nx,ny,nz,area,albedo_r,albedo_g,albedo_b,emission_r,emission_g,emission_b";
 
 /// Writes `dir/patches.csv`.
-pub fn export_patches(dir: &Path, patches: &[Patch]) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+pub fn export_patches(dir: &Path, patches: &[Patch]) -> Result<(), BakeError> {
+    std::fs::create_dir_all(dir).map_err(|source| BakeError::Io {
+        what: "create the export directory",
+        path: dir.to_path_buf(),
+        source,
+    })?;
     let path = dir.join("patches.csv");
-    let file =
-        std::fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+    let file = std::fs::File::create(&path).map_err(|e| export_error(&path, e))?;
     let mut w = std::io::BufWriter::new(file);
-    let io = |e| anyhow::Error::from(e).context(format!("writing {}", path.display()));
+    let io = |e| export_error(&path, e);
     writeln!(w, "{PATCHES_CSV_HEADER}").map_err(io)?;
     for (i, p) in patches.iter().enumerate() {
         let [cx, cy, cz] = p.centre;
@@ -109,4 +118,12 @@ pub fn export_patches(dir: &Path, patches: &[Patch]) -> anyhow::Result<()> {
     }
     w.flush().map_err(io)?;
     Ok(())
+}
+
+/// An inspection file that could not be written.
+fn export_error(path: &Path, e: impl std::fmt::Display) -> BakeError {
+    BakeError::Export {
+        path: path.to_path_buf(),
+        detail: e.to_string(),
+    }
 }

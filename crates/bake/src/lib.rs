@@ -45,7 +45,7 @@ pub use report::{BakeReport, CodecSummary, StageTime};
 
 use crate::compute::Backend;
 use crate::compute::Gpu;
-use anyhow::Context as _;
+use error::BakeError;
 use form_factor::FormFactors;
 use radiosity_bakefile::codec::Encoded;
 use radiosity_bakefile::{self as bakefile, BakeFile, SceneHash};
@@ -75,10 +75,10 @@ pub struct BakeOutput {
 }
 
 /// Runs the bake. `progress` receives one line per stage as it starts.
-pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Result<BakeOutput> {
+pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> Result<BakeOutput, BakeError> {
     config.validate()?;
     let gpu = match config.compute {
-        ComputeChoice::OpenCl(sel) => Some(Gpu::new(sel).context("opening the OpenCL device")?),
+        ComputeChoice::OpenCl(sel) => Some(Gpu::new(sel)?),
         ComputeChoice::CpuReference => None,
     };
     let backend = backend_of(&gpu);
@@ -97,8 +97,11 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
     // written fails before the bake rather than after it.
     if let Some(dir) = config.output.as_deref().and_then(Path::parent) {
         if !dir.as_os_str().is_empty() {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("creating the output directory {}", dir.display()))?;
+            std::fs::create_dir_all(dir).map_err(|source| BakeError::Io {
+                what: "create the output directory",
+                path: dir.to_path_buf(),
+                source,
+            })?;
         }
     }
     let device = backend.device_name();
@@ -248,8 +251,10 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> anyhow::Resul
             flat.extend_from_slice(&inverse.apply_symmetric(c, n));
         }
         let path = dir.join("T_decoded.npy");
-        npy::write_f32(&path, &[3, n, n], &flat)
-            .with_context(|| format!("writing {}", path.display()))?;
+        npy::write_f32(&path, &[3, n, n], &flat).map_err(|e| BakeError::Export {
+            path: path.clone(),
+            detail: e.to_string(),
+        })?;
         stages.push(StageTime {
             stage: "export",
             seconds: t.elapsed().as_secs_f64(),
@@ -308,7 +313,7 @@ pub fn transfer_stages(
     config: &BakeConfig,
     backend: &Backend,
     progress: &mut dyn FnMut(&str),
-) -> anyhow::Result<TransferStages> {
+) -> Result<TransferStages, BakeError> {
     let mut stages = Vec::new();
 
     progress(&format!("loading {}", config.scene.display()));

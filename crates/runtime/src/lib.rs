@@ -38,6 +38,30 @@
 //!
 //! Evaluating `H` at pixels ([`surface`]) and shading them ([`render`],
 //! [`tonemap`]) complete the frame.
+//!
+//! ## Embedding it
+//!
+//! An application that draws the scene itself opens a bake (with the scene
+//! it names, checked to be the one baked), calls [`Runtime::frame`] with
+//! its lights, and reads the indirect light per patch or at a point of the
+//! scene's triangles (`examples/embed.rs`; the GPU version, in a GL context
+//! the application owns, is `examples/gl_embed.rs`):
+//!
+//! ```no_run
+//! use radiosity_core::scene_config::Light;
+//! use radiosity_runtime::{Runtime, RuntimeOptions};
+//! use std::collections::BTreeMap;
+//! use std::path::Path;
+//! # fn main() -> Result<(), radiosity_runtime::open::OpenError> {
+//! let mut rt = Runtime::open(Path::new("scene.rad"), None, RuntimeOptions::default())?;
+//! let lights = [Light::Point { position: [1.0, 2.0, 0.5], intensity: [5.0; 3] }];
+//! rt.frame(&lights, &BTreeMap::new()); // direct light on patches, B0, the gather
+//! let per_patch = rt.h(); // indirect irradiance H per patch (RGB)
+//! let at_point = rt.indirect_at(0, [0.5, 0.0, 0.5]); // H at a point of triangle 0
+//! # let _ = (per_patch, at_point);
+//! # Ok(())
+//! # }
+//! ```
 
 // NaN-aware tests: `!(x > 0.0)` is true for NaN, which is the point.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
