@@ -8,7 +8,7 @@ use radiosity_core::scene::{ImageSource, Scene};
 use serde::Serialize;
 use std::fs::File;
 use std::io::{self, Read};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Streaming 64-bit FNV-1a (Fowler, Noll, Vo; offset basis
 /// `0xcbf29ce484222325`, prime `0x100000001b3`), used for content hashes of
@@ -85,11 +85,12 @@ impl SceneHash {
         };
         let dir = obj_path.parent().unwrap_or_else(|| Path::new(""));
         let mut obj = Fnv1a64::new();
+        let gltf = radiosity_core::scene::gltf::is_gltf(obj_path);
         let mut libraries: Vec<String> = Vec::new();
         let mut obj_len = 0u64;
-        // Stream the OBJ once: hash every byte and collect `mtllib` names
-        // line by line (the name is the rest of the line, trimmed, as tobj
-        // reads it).
+        // Stream the scene file once: hash every byte and, for an OBJ,
+        // collect `mtllib` names line by line (the name is the rest of the
+        // line, trimmed, as tobj reads it).
         let mut file = File::open(obj_path).map_err(err(obj_path))?;
         let mut buf = vec![0u8; 1 << 16];
         let mut line: Vec<u8> = Vec::new();
@@ -100,6 +101,9 @@ impl SceneHash {
             }
             obj.update(&buf[..k]);
             obj_len += k as u64;
+            if gltf {
+                continue;
+            }
             for &b in &buf[..k] {
                 if b == b'\n' {
                     collect_mtllib(&line, &mut libraries);
@@ -111,33 +115,37 @@ impl SceneHash {
         }
         collect_mtllib(&line, &mut libraries);
 
+        // The side files, each as its name and path: an OBJ's material
+        // libraries (resolved next to it, as the loader does); a glTF
+        // file's buffers and images named by URI, in the file's order
+        // (a data URI is in the file's bytes), by their path relative to
+        // the file.
+        let side: Vec<(String, PathBuf)> = if gltf {
+            radiosity_core::scene::files::gltf_side_files(obj_path)
+                .map_err(err(obj_path))?
+                .into_iter()
+                .map(|p| {
+                    let rel = p
+                        .strip_prefix(dir)
+                        .unwrap_or(&p)
+                        .to_string_lossy()
+                        .into_owned();
+                    (rel, p)
+                })
+                .collect()
+        } else {
+            libraries
+                .into_iter()
+                .map(|n| (n.clone(), dir.join(n)))
+                .collect()
+        };
         let mut mtl = Fnv1a64::new();
-        if radiosity_core::scene::gltf::is_gltf(obj_path) {
-            // `mtllib` means nothing in a glTF file.
-            libraries.clear();
-            // A glTF file's side files: the buffers and images its URIs
-            // name, in the file's order (a data URI is in the file's bytes).
-            let side =
-                radiosity_core::scene::files::gltf_side_files(obj_path).map_err(err(obj_path))?;
-            for path in side {
-                let rel = path.strip_prefix(dir).unwrap_or(&path);
-                mtl.update(rel.to_string_lossy().as_bytes());
-                match File::open(&path) {
-                    Ok(f) if !path.is_dir() => {
-                        mtl.update(&[1]);
-                        let n = hash_stream(f, &mut mtl).map_err(err(&path))?;
-                        mtl.update(&n.to_le_bytes());
-                    }
-                    _ => mtl.update(&[0]),
-                }
-            }
-        }
-        for name in &libraries {
+        for (name, path) in &side {
             mtl.update(name.as_bytes());
-            match File::open(dir.join(name)) {
-                Ok(f) if !dir.join(name).is_dir() => {
+            match File::open(path) {
+                Ok(f) if !path.is_dir() => {
                     mtl.update(&[1]);
-                    let n = hash_stream(f, &mut mtl).map_err(err(&dir.join(name)))?;
+                    let n = hash_stream(f, &mut mtl).map_err(err(path))?;
                     mtl.update(&n.to_le_bytes());
                 }
                 _ => mtl.update(&[0]),
