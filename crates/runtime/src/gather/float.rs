@@ -20,8 +20,61 @@
 //! caller (exact).
 
 use super::bc6h;
+use super::rows::{DenseRow, GatherStats};
 use half::f16;
 use radiosity_bakefile::codec::DenseFormat;
+
+/// A float matrix (f16, f32 or BC6H) as the gather runs it.
+pub(super) struct FloatRows {
+    format: DenseFormat,
+    channels: usize,
+    /// The stored scale's inverse per channel (1 for f32): a power of two.
+    inv_scale: [f32; 3],
+    kernel: FloatKernel,
+}
+
+impl FloatRows {
+    /// A matrix of `format` with `channels` stored channels, scaled by
+    /// `1 / inv_scale`, run by the kernel for `vector`.
+    pub(super) fn new(
+        format: DenseFormat,
+        channels: usize,
+        inv_scale: [f32; 3],
+        vector: &str,
+    ) -> FloatRows {
+        FloatRows {
+            format,
+            channels,
+            inv_scale,
+            kernel: FloatKernel::for_cpu(vector),
+        }
+    }
+
+    /// Runs on the kernel for `vector` instead.
+    pub(super) fn set_vector(&mut self, vector: &str) {
+        self.kernel = FloatKernel::for_cpu(vector);
+    }
+
+    /// `row`'s active block columns times `B0` into `acc` (per block row
+    /// and output channel, 16 lanes; an f16 or f32 tile may end in a
+    /// partial block, padded with zeros at load).
+    pub(super) fn row(&self, row: &DenseRow, acc: &mut [[[f32; 16]; 3]], stats: &mut GatherStats) {
+        let (f, c, out_ch) = (self.format, self.channels, row.inputs.out_ch);
+        let col_bytes = column_bytes(f, row.bh, c);
+        row.each_column(col_bytes, stats, |col, b| {
+            // The stored scale (1 for f32) into B0: a power of two, so
+            // exact.
+            let mut b = *b;
+            if f != DenseFormat::F32 {
+                for (oc, bc) in b.iter_mut().enumerate().take(out_ch) {
+                    let s = self.inv_scale[oc.min(c - 1)];
+                    bc.iter_mut().for_each(|v| *v *= s);
+                }
+            }
+            column(self.kernel, f, col, c, &b, out_ch, acc);
+        });
+    }
+}
 
 /// Bytes of one stored value.
 fn value_bytes(format: DenseFormat) -> usize {
@@ -32,7 +85,7 @@ fn value_bytes(format: DenseFormat) -> usize {
 }
 
 /// Bytes of one re-laid block column of `bh` block rows.
-pub(super) fn column_bytes(format: DenseFormat, bh: usize, channels: usize) -> usize {
+fn column_bytes(format: DenseFormat, bh: usize, channels: usize) -> usize {
     match format {
         DenseFormat::Bc6h => bc6h::UNPACKED_BYTES * bh,
         _ => 16 * channels * value_bytes(format) * bh,
@@ -84,7 +137,7 @@ pub(super) fn relay_tile(
 
 /// Which code runs a float block column.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum FloatKernel {
+enum FloatKernel {
     Portable,
     #[cfg(target_arch = "x86_64")]
     Avx512,
@@ -95,7 +148,7 @@ pub(super) enum FloatKernel {
 impl FloatKernel {
     /// The vector kernel for `vector` ([`super::simd_kind`]), where the CPU
     /// also converts halves (F16C; AVX-512F includes its 512-bit form).
-    pub(super) fn for_cpu(vector: &str) -> FloatKernel {
+    fn for_cpu(vector: &str) -> FloatKernel {
         #[cfg(target_arch = "x86_64")]
         {
             if vector == "avx512" {
@@ -113,7 +166,7 @@ impl FloatKernel {
 /// One re-laid block column `col` (`acc.len()` block rows, `channels`
 /// stored) times `b` (its 4 columns of `B0` per output channel, the
 /// format's scale folded in) into the first `out_ch` channels of `acc`.
-pub(super) fn column(
+fn column(
     kernel: FloatKernel,
     format: DenseFormat,
     col: &[u8],

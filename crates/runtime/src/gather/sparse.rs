@@ -5,12 +5,10 @@
 //! common case (three output channels) lists runs of consecutive active
 //! groups and multiplies them in one call, the general case entry by entry.
 
+use super::columns::{active_groups, low_bits, ActiveColumns};
+use super::rows::{compact, tile_columns, GatherStats, RowInputs, Rows, NONE};
 #[cfg(target_arch = "x86_64")]
 use super::x86;
-use super::{
-    active_groups, compact, low_bits, tile_columns, ActiveColumns, GatherStats, RowInputs, Rows,
-    NONE,
-};
 use radiosity_bakefile::codec::rgb9e5;
 use radiosity_bakefile::codec::{Encoded, SparseValues};
 
@@ -333,7 +331,8 @@ pub(super) fn sparse_avx2_available() -> bool {
 
 /// `B0` by column into `out`, the three channels side by side and a zero
 /// lane: what the sparse part's common case reads. Only the columns of
-/// active groups are written, as in [`fill_b0_groups`].
+/// active groups are written, as in
+/// [`super::columns::fill_b0_groups`].
 pub(super) fn fill_b0_columns(
     b0: [&[f32]; 3],
     active: &ActiveColumns,

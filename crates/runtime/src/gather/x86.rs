@@ -1,19 +1,20 @@
 //! The x86-64 kernels of the CPU gather ([`super`]): a BC1 row of tiles
 //! on AVX-512 and on AVX2 + FMA, and the sparse part's RGB9E5 loop on
-//! AVX2. Each computes what the portable code in `gather.rs` computes: the
-//! sparse loop with the same bits, the BC1 rows within f32 rounding of the
-//! portable order (both vector paths add in one order). They are tested
-//! against the portable path (`tests/gather.rs`, the unit test in
-//! `gather.rs`).
+//! AVX2. Each computes what the portable code beside it computes
+//! ([`super::bc1`], [`super::bc4`], [`super::sparse`]): the sparse loop
+//! with the same bits, the BC1 rows within f32 rounding of the portable
+//! order (both vector paths add in one order). They are tested against the
+//! portable path (`tests/gather.rs`, the unit test in `sparse.rs`).
 
 use super::palette::{bc1_keys, Bc1Table};
+use super::rows::{tile_columns, Rows};
 
-/// [`super::sparse_rgb9e5`] with AVX2 (the runs of a row of tiles in one
+/// [`super::sparse`]'s RGB9E5 loop with AVX2 (the runs of a row of tiles in one
 /// call): the three mantissas extracted by one variable shift and
 /// converted together; the same operations per lane in the same order
 /// (mantissa times factor, times `B0`, added to the row), so the same
-/// bits. 20 instructions an entry (no bounds check: [`super::Rows`] and
-/// [`super::tile_columns`]), where the portable loop, which
+/// bits. 20 instructions an entry (no bounds check: [`Rows`] and
+/// [`tile_columns`]), where the portable loop, which
 /// the compiler vectorises only partly, took 41 with its checks (counted
 /// in the disassembly).
 #[target_feature(enable = "avx2")]
@@ -23,7 +24,7 @@ pub(super) unsafe fn sparse_rgb9e5_avx2(
     packed: &[u32],
     exp_factor: &[[f32; 4]; 32],
     b0x: &[[f32; 4]],
-    rows: &mut super::Rows,
+    rows: &mut Rows,
 ) {
     use std::arch::x86_64::*;
     let shifts = _mm_setr_epi32(0, 9, 18, 0);
@@ -35,7 +36,7 @@ pub(super) unsafe fn sparse_rgb9e5_avx2(
             _mm_prefetch::<_MM_HINT_T0>(packed.as_ptr().wrapping_add(next).cast());
         }
         let (a, b) = (a as usize, b as usize);
-        let b0x = super::tile_columns(b0x, jb);
+        let b0x = tile_columns(b0x, jb);
         for (&p, &w) in pos[a..b].iter().zip(&packed[a..b]) {
             let m = _mm_cvtepi32_ps(_mm_and_si128(
                 _mm_srlv_epi32(_mm_set1_epi32(w as i32), shifts),
@@ -67,7 +68,7 @@ const PREFETCH_AHEAD: usize = 16;
 pub(super) const AVX512_SEGMENT: usize = 64;
 
 /// A BC1 row of tiles of `BH` block rows on AVX-512, each block column
-/// times its 4 values of `B0` (from [`super::fill_b0_groups`]) into `acc`,
+/// times its 4 values of `B0` (from [`super::columns::fill_b0_groups`]) into `acc`,
 /// the `3 BH` accumulators held in registers for the whole row (24 of the
 /// 32 vector registers for a full row). By segments of
 /// [`AVX512_SEGMENT`] active block columns:
@@ -216,7 +217,7 @@ pub(super) const AVX2_SEGMENT: usize = 128;
 /// - then per block row its 6 accumulators stay in registers while the
 ///   segment's columns pass: per block one index broadcast, two shifts,
 ///   three palette loads, six in-lane shuffles (`vpermilps`) and six fused
-///   multiply-adds, with `B0` from [`super::fill_b0_groups`].
+///   multiply-adds, with `B0` from [`super::columns::fill_b0_groups`].
 ///
 /// The segment's blocks stay in L1 between block rows. (Before segments,
 /// every block row passed over the whole row of tiles, whose blocks, `B0`
@@ -426,7 +427,7 @@ unsafe fn bc4_select_avx512(pal: *const f32, bits: u64) -> std::arch::x86_64::__
 /// A grey (one-channel) BC4 row of tiles of `BH` block rows gathering `CH`
 /// channels of `B0` (3, or 1 when `B0` is grey too) on AVX-512, laid out
 /// as [`bc1_row_avx512`]'s (`cols`: active block columns, byte offset and
-/// first column; `b0p` from [`super::fill_b0_groups`]) with the `CH BH`
+/// first column; `b0p` from [`super::columns::fill_b0_groups`]) with the `CH BH`
 /// accumulators in registers for the whole row. Per block: its palette, one load from the
 /// table of every endpoint pair (`pairs`, [`super::palette::bc4_palette`]), its 16
 /// values picked as [`bc4_values_avx512`] picks them, and per channel one
