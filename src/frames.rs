@@ -3,7 +3,7 @@
 //! share: finding or making the bake, loading the camera and lights,
 //! drawing headless, writing the PNG.
 
-use crate::cli::{with_flag, DeviceArgs, RenderArgs, ViewArgs};
+use crate::cli::{with_flag, DeviceArgs, RenderJob, ViewJob};
 use crate::outputs::{self, ImageFormat, Inputs};
 use anyhow::{bail, Context as _};
 use radiosity::bake::voxelize::Resolution;
@@ -158,35 +158,16 @@ fn default_camera_lights(
 }
 
 /// `radiosity render`.
-pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
-    use radiosity::runtime::render::View;
+pub(crate) fn render(job: RenderJob) -> anyhow::Result<()> {
     use radiosity::runtime::{Runtime, RuntimeOptions};
-    let view = View::parse(&args.view).with_context(|| {
-        format!(
-            "--view {:?}: expected final, direct, indirect, patches or weights",
-            args.view
-        )
-    })?;
-    if !matches!(args.backend.as_str(), "cpu" | "gl" | "auto") {
-        bail!("--backend {:?}: expected cpu, gl or auto", args.backend);
-    }
-    if !(16..=radiosity::gl::shadow::MAX_RESOLUTION).contains(&args.shadow_resolution) {
-        bail!(
-            "--shadow-resolution {}: expected 16..={}",
-            args.shadow_resolution,
-            radiosity::gl::shadow::MAX_RESOLUTION
-        );
-    }
-    if !(1..=16).contains(&args.samples) {
-        bail!("--samples {}: expected 1..=16", args.samples);
-    }
-    check_cull(args.cull)?;
-    check_exposure(args.exposure)?;
-    check_image_size(args.width, args.height)?;
-    let budget = shadow_budget(args.shadow_budget)?;
-    // The outputs, before any work: their formats by their names, none of
-    // them an input, places that take them.
-    let format = ImageFormat::of(&args.output, "-o")?;
+    let RenderJob {
+        args,
+        view,
+        budget,
+        format,
+    } = job;
+    // The outputs, before any work: none of them an input, places that
+    // take them.
     let mut inputs = inputs_of(
         &args.input,
         args.scene.as_deref(),
@@ -194,7 +175,6 @@ pub(crate) fn render(args: RenderArgs) -> anyhow::Result<()> {
     );
     let mut outs = vec![(args.output.as_path(), "-o")];
     if let Some(hdr) = &args.hdr {
-        outputs::check_pfm(hdr, "--hdr")?;
         outs.push((hdr.as_path(), "--hdr"));
     }
     for &(out, flag) in &outs {
@@ -493,94 +473,17 @@ fn exact(x: f32) -> String {
     }
 }
 
-/// An image of `width × height` pixels must have between 1 and 2^26
-/// (8192²: 0.8 GB of linear radiance), the product taken without overflow.
-pub(crate) fn check_image_size(width: usize, height: usize) -> anyhow::Result<()> {
-    match width.checked_mul(height) {
-        Some(p) if (1..=1 << 26).contains(&p) => Ok(()),
-        _ => bail!(
-            "--width {width} --height {height}: the image must have between 1 and 2^26 pixels"
-        ),
-    }
-}
-
-/// A fixed exposure must scale radiance to something displayable: a
-/// positive finite factor (NaN or infinity would write a black or white
-/// image without a word).
-/// `--shadow-budget` in MiB as bytes: positive, finite and at most 2^24
-/// MiB (16 TiB).
-fn shadow_budget(mib: Option<f64>) -> anyhow::Result<Option<u64>> {
-    match mib {
-        None => Ok(None),
-        Some(m) if m.is_finite() && m > 0.0 && m <= (1u64 << 24) as f64 => {
-            Ok(Some((m * (1u64 << 20) as f64).round().max(1.0) as u64))
-        }
-        Some(m) => bail!("--shadow-budget {m}: expected a positive number of MiB, at most 2^24"),
-    }
-}
-
-fn check_exposure(exposure: Option<f32>) -> anyhow::Result<()> {
-    match exposure {
-        Some(e) if !(e.is_finite() && e > 0.0) => {
-            bail!("--exposure {e}: expected a positive finite factor")
-        }
-        _ => Ok(()),
-    }
-}
-
-/// `--cull`: a fraction in [0, 1) (NaN refused).
-fn check_cull(cull: f64) -> anyhow::Result<()> {
-    if !(0.0..1.0).contains(&cull) {
-        bail!("--cull {cull}: expected a fraction in [0, 1)");
-    }
-    Ok(())
-}
-
 /// `radiosity view`.
-pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
+pub(crate) fn view(job: ViewJob) -> anyhow::Result<()> {
     use radiosity::runtime::{Runtime, RuntimeOptions};
     use radiosity::viewer::{self, ViewerConfig};
-    if !(1..=16).contains(&args.samples) {
-        bail!("--samples {}: expected 1..=16", args.samples);
-    }
-    check_cull(args.cull)?;
-    if !(16..=radiosity::gl::shadow::MAX_RESOLUTION).contains(&args.shadow_resolution) {
-        bail!(
-            "--shadow-resolution {}: expected 16..={}",
-            args.shadow_resolution,
-            radiosity::gl::shadow::MAX_RESOLUTION
-        );
-    }
-    if !(1..=16384).contains(&args.width) || !(1..=16384).contains(&args.height) {
-        bail!(
-            "--width {} --height {}: expected 1..=16384 each",
-            args.width,
-            args.height
-        );
-    }
-    check_exposure(args.exposure)?;
-    let patch_light = viewer::PatchLight::parse(&args.patch_light).with_context(|| {
-        format!(
-            "--patch-light {:?}: expected gpu, cpu or auto",
-            args.patch_light
-        )
-    })?;
-    if args.frames == Some(0) {
-        bail!("--frames 0: expected at least 1");
-    }
-    let budget = shadow_budget(args.shadow_budget)?;
-    let keys = viewer::keys::KeyScript::parse(args.keys.as_deref().unwrap_or(""))
-        .with_context(|| format!("--keys {:?}", args.keys.as_deref().unwrap_or("")))?;
-    if let Some(n) = args.frames.filter(|&n| n <= keys.len() as u64) {
-        bail!(
-            "--frames {n} with {} key presses: one press follows each frame, so at least {} frames",
-            keys.len(),
-            keys.len() + 1
-        );
-    }
-    if args.screenshot.is_some() && args.frames.is_none() {
-        bail!("--screenshot needs --frames N (P or F12 saves screenshots interactively)");
-    }
+    let ViewJob {
+        args,
+        patch_light,
+        budget,
+        keys,
+        headless_format,
+    } = job;
     // The outputs, before any work (as `render`'s).
     let mut inputs = inputs_of(
         &args.input,
@@ -588,13 +491,10 @@ pub(crate) fn view(args: ViewArgs) -> anyhow::Result<()> {
         args.camera_lights.as_deref(),
     );
     let mut outs: Vec<(&Path, &str)> = Vec::new();
-    let mut headless_format = None;
     if let Some(p) = &args.screenshot {
-        ImageFormat::of(p, "--screenshot")?;
         outs.push((p, "--screenshot"));
     }
     if let Some(p) = &args.headless_to {
-        headless_format = Some(ImageFormat::of(p, "--headless-to")?);
         outs.push((p, "--headless-to"));
     }
     for &(out, flag) in &outs {

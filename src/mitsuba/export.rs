@@ -48,8 +48,12 @@ pub enum ExportError {
         source: std::io::Error,
     },
     /// A material's texture could not be read.
-    #[error("material `{material}`: {message}")]
-    Texture { material: String, message: String },
+    #[error("material `{material}`: {source}")]
+    Texture {
+        material: String,
+        #[source]
+        source: crate::core::error::ImageError,
+    },
     /// The image size is zero or too large.
     #[error("image size {width} x {height}: both must be 1..=16384")]
     ImageSize { width: usize, height: usize },
@@ -138,9 +142,9 @@ pub fn export(
         // The albedo: the run time's ρ(x) (module doc).
         let textured = !scene.texcoords.is_empty() && mat.diffuse_texture.is_some();
         let reflectance = if let (true, Some(tex)) = (textured, &mat.diffuse_texture) {
-            let t = Texture::load(tex).map_err(|message| ExportError::Texture {
+            let t = Texture::load(tex).map_err(|source| ExportError::Texture {
                 material: mat.name.clone(),
-                message,
+                source,
             })?;
             let texels: Vec<[f32; 3]> = t
                 .texels

@@ -286,7 +286,7 @@ pub fn build(
     };
     map.check(n).map_err(|detail| BakeError::Mismatch {
         stage: "surface map",
-        detail,
+        detail: detail.to_string(),
     })?;
     stats.seconds = start.elapsed().as_secs_f64();
     Ok((map, samples, stats))

@@ -125,7 +125,7 @@ pub enum BakeFileError {
         file: String,
         tag: String,
         what: &'static str,
-        detail: String,
+        detail: crate::SectionError,
     },
 }
 

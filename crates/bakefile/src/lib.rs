@@ -97,6 +97,7 @@ pub mod container;
 pub mod hash;
 pub mod near_field;
 pub mod records;
+pub mod section_error;
 pub mod surface;
 
 pub use container::{
@@ -104,6 +105,7 @@ pub use container::{
     IN_MEMORY, MAGIC,
 };
 pub use hash::SceneHash;
+pub use section_error::SectionError;
 
 use container::{encode_sections, le_u32, write_atomic};
 use near_field::NearField;
@@ -322,12 +324,12 @@ pub struct BakeFile {
 // ---------------------------------------------------------------------------
 // Validation
 
-fn invalid(file: &str, t: [u8; 4], detail: String) -> BakeFileError {
+fn invalid(file: &str, t: [u8; 4], detail: impl Into<SectionError>) -> BakeFileError {
     BakeFileError::Invalid {
         file: file.to_string(),
         tag: tag_name(t),
         what: section_what(t),
-        detail,
+        detail: detail.into(),
     }
 }
 
@@ -707,14 +709,14 @@ pub fn parse_named(bytes: &[u8], file: &str) -> Result<BakeFile, BakeFileError> 
             return Err(invalid(
                 file,
                 tag::CODEC,
-                "flag bit 0 says the column scales follow, but there is no CCOL section".into(),
+                "flag bit 0 says the column scales follow, but there is no CCOL section",
             ))
         }
         (false, Some(_)) => {
             return Err(invalid(
                 file,
                 tag::COLUMN_SCALES,
-                "column scales present but the codec descriptor's flag bit 0 is not set".into(),
+                "column scales present but the codec descriptor's flag bit 0 is not set",
             ))
         }
     };

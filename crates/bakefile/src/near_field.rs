@@ -71,6 +71,7 @@
 //! flag bit 0, per patch its 16 far weights (the same rules).
 
 use super::surface::{PatchSamples, SAMPLES_PER_PATCH};
+use crate::section_error::SectionError;
 
 /// Links below this form factor (as the rays measure it) are not stored by
 /// default (module doc): 2 % of a hemisphere. On Sponza at 4.5k patches it keeps
@@ -169,22 +170,26 @@ impl NearField {
 
     /// Reads `NEAR` for a file of `n` patches; every length, index and
     /// count is checked ([`NearField::check`]).
-    pub fn from_bytes(b: &[u8], n: usize) -> Result<NearField, String> {
+    pub fn from_bytes(b: &[u8], n: usize) -> Result<NearField, SectionError> {
         let u32_at = |at: usize| u32::from_le_bytes(b[at..at + 4].try_into().expect("4 bytes"));
         if b.len() < 16 {
-            return Err(format!(
-                "{} bytes, shorter than its 16-byte header",
-                b.len()
-            ));
+            return Err(SectionError::Truncated {
+                what: "header",
+                need: 16,
+                at: 0,
+                left: b.len() as u64,
+            });
         }
         let (rays, m, cells, flags) = (u32_at(0), u32_at(4) as usize, u32_at(8), u32_at(12));
         if cells as usize != SAMPLES_PER_PATCH {
-            return Err(format!(
+            return Err(SectionError::Unsupported(format!(
                 "{cells} cells per link, this build reads {SAMPLES_PER_PATCH}"
-            ));
+            )));
         }
         if flags & !FLAG_FAR != 0 {
-            return Err(format!("flags are {flags:#x}, only bit 0 is defined"));
+            return Err(SectionError::Unsupported(format!(
+                "flags are {flags:#x}, only bit 0 is defined"
+            )));
         }
         let per_patch = if flags & FLAG_FAR != 0 { 2 } else { 1 };
         let want = (n as u64 + 1) * 4
@@ -192,10 +197,11 @@ impl NearField {
             + 16
             + per_patch * n as u64 * SHARES_LEN;
         if b.len() as u64 != want {
-            return Err(format!(
-                "{} bytes, expected {want} for {n} patches and {m} links",
-                b.len()
-            ));
+            return Err(SectionError::Length {
+                found: b.len() as u64,
+                expected: want,
+                layout: format!("{n} patches and {m} links"),
+            });
         }
         let starts: Vec<u32> = (0..=n).map(|i| u32_at(16 + 4 * i)).collect();
         let base = 16 + 4 * (n + 1);
@@ -237,65 +243,73 @@ impl NearField {
     /// Checks the starts (from 0, non-decreasing, ending at the link
     /// count), the neighbours (in range, not the receiver), and that no
     /// receiver's counts exceed its rays.
-    pub fn check(&self, n: usize) -> Result<(), String> {
+    pub fn check(&self, n: usize) -> Result<(), SectionError> {
         if self.rays == 0 {
             // No correction (the default value, or a bake made without).
             return if self.links.is_empty() {
                 Ok(())
             } else {
-                Err(format!("{} links stored for 0 rays", self.links.len()))
+                Err(SectionError::Invalid(format!(
+                    "{} links stored for 0 rays",
+                    self.links.len()
+                )))
             };
         }
         if self.starts.len() != n + 1 || self.shares.len() != n {
-            return Err(format!(
+            return Err(SectionError::Invalid(format!(
                 "{} link starts and {} cell shares for {n} patches ({} and {n} expected)",
                 self.starts.len(),
                 self.shares.len(),
                 n + 1
-            ));
+            )));
         }
         if !self.far.is_empty() && self.far.len() != n {
-            return Err(format!("{} far weights for {n} patches", self.far.len()));
+            return Err(SectionError::Invalid(format!(
+                "{} far weights for {n} patches",
+                self.far.len()
+            )));
         }
         let named = [("cell shares", &self.shares), ("far weights", &self.far)];
         for (what, rows) in named {
             for (j, s) in rows.iter().enumerate() {
                 let sum: f64 = s.iter().map(|&v| v as f64).sum();
                 if s.iter().any(|v| !(v.is_finite() && *v >= 0.0)) || (sum - 1.0).abs() > 1e-4 {
-                    return Err(format!(
+                    return Err(SectionError::Invalid(format!(
                         "patch {j}: {what} {s:?} are not finite numbers ≥ 0 summing to 1"
-                    ));
+                    )));
                 }
             }
         }
         if self.starts[0] != 0 || self.starts[n] as usize != self.links.len() {
-            return Err(format!(
+            return Err(SectionError::Invalid(format!(
                 "link starts run from {} to {}, expected 0 to {}",
                 self.starts[0],
                 self.starts[n],
                 self.links.len()
-            ));
+            )));
         }
         for i in 0..n {
             let (a, b) = (self.starts[i], self.starts[i + 1]);
             if b < a {
-                return Err(format!("patch {i}: link starts decrease ({a} then {b})"));
+                return Err(SectionError::Invalid(format!(
+                    "patch {i}: link starts decrease ({a} then {b})"
+                )));
             }
             let mut total = 0u64;
             for l in &self.links[a as usize..b as usize] {
                 if l.patch as usize >= n || l.patch as usize == i {
-                    return Err(format!(
+                    return Err(SectionError::Invalid(format!(
                         "patch {i}: neighbour {} out of range or itself",
                         l.patch
-                    ));
+                    )));
                 }
                 total += l.counts.iter().map(|&c| c as u64).sum::<u64>();
             }
             if total > self.rays as u64 {
-                return Err(format!(
+                return Err(SectionError::Invalid(format!(
                     "patch {i}: its links count {total} rays of {}",
                     self.rays
-                ));
+                )));
             }
         }
         Ok(())

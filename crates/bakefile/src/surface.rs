@@ -49,6 +49,7 @@
 //! `PSMP`: `n × SAMPLES_PER_PATCH` records of position `3 × f32` and unit
 //! normal `3 × f32`.
 
+use crate::section_error::SectionError;
 use radiosity_core::patch::{Cut, Region, MAX_CUTS};
 use serde::Serialize;
 
@@ -258,14 +259,16 @@ impl SurfaceMap {
     /// Reads `SMAP` for a file of `n` patches; every length is checked
     /// against the bytes present before it is read, and every field is
     /// validated ([`SurfaceMap::check`]).
-    pub fn from_bytes(b: &[u8], n: usize) -> Result<SurfaceMap, String> {
+    pub fn from_bytes(b: &[u8], n: usize) -> Result<SurfaceMap, SectionError> {
         let mut at = 0usize;
-        let mut take = |len: usize, what: &str| -> Result<&[u8], String> {
+        let mut take = |len: usize, what: &'static str| -> Result<&[u8], SectionError> {
             if b.len() - at < len {
-                return Err(format!(
-                    "{what}: {len} bytes needed at byte {at}, {} left",
-                    b.len() - at
-                ));
+                return Err(SectionError::Truncated {
+                    what,
+                    need: len as u64,
+                    at: at as u64,
+                    left: (b.len() - at) as u64,
+                });
             }
             at += len;
             Ok(&b[at - len..at])
@@ -284,12 +287,15 @@ impl SurfaceMap {
         let s = take(
             (tris + 1)
                 .checked_mul(4)
-                .ok_or("triangle count overflows")?,
+                .ok_or(SectionError::Overflow("triangle"))?,
             "piece starts",
         )?;
         let tri_start: Vec<u32> = (0..=tris).map(|k| u32_at(s, k)).collect();
         let m = *tri_start.last().unwrap_or(&0) as usize;
-        let pv = take(m.checked_mul(8).ok_or("piece count overflows")?, "pieces")?;
+        let pv = take(
+            m.checked_mul(8).ok_or(SectionError::Overflow("piece"))?,
+            "pieces",
+        )?;
         let pp = take(m * 4, "piece patches")?;
         let pieces: Vec<MapPiece> = (0..m)
             .map(|k| MapPiece {
@@ -303,7 +309,7 @@ impl SurfaceMap {
             })
             .collect();
         let vv = take(
-            n.checked_mul(8).ok_or("patch count overflows")?,
+            n.checked_mul(8).ok_or(SectionError::Overflow("patch"))?,
             "patch voxels",
         )?;
         let patch_voxel = (0..n)
@@ -319,9 +325,9 @@ impl SurfaceMap {
         for k in 0..n {
             let d = u16_at(vv, 4 * k + 3);
             if d > 5 {
-                return Err(format!(
+                return Err(SectionError::Invalid(format!(
                     "patch {k}: facing direction {d} is not one of 0..6"
-                ));
+                )));
             }
             patch_direction.push(d as u8);
         }
@@ -334,7 +340,10 @@ impl SurfaceMap {
         let mut cuts = Vec::new();
         if b.len() > before_cuts {
             let count = u32_at(take(4, "cut count")?, 0) as usize;
-            let c = take(count.checked_mul(20).ok_or("cut count overflows")?, "cuts")?;
+            let c = take(
+                count.checked_mul(20).ok_or(SectionError::Overflow("cut"))?,
+                "cuts",
+            )?;
             let f32_at = |k: usize| f32::from_bits(u32_at(c, k));
             for k in 0..count {
                 cuts.push((
@@ -347,7 +356,11 @@ impl SurfaceMap {
             }
         }
         if at != b.len() {
-            return Err(format!("{} trailing bytes after byte {at}", b.len() - at));
+            return Err(SectionError::Length {
+                found: b.len() as u64,
+                expected: at as u64,
+                layout: format!("{} trailing bytes after byte {at}", b.len() - at),
+            });
         }
         let map = SurfaceMap {
             origin,
@@ -365,49 +378,57 @@ impl SurfaceMap {
     }
 
     /// Checks every field for a file of `n` patches.
-    pub fn check(&self, n: usize) -> Result<(), String> {
+    pub fn check(&self, n: usize) -> Result<(), SectionError> {
         if !(self.origin.iter().all(|o| o.is_finite())
             && self.voxel_size.is_finite()
             && self.voxel_size > 0.0)
         {
-            return Err(format!(
+            return Err(SectionError::Invalid(format!(
                 "grid origin {:?} or voxel size {} is not finite and positive",
                 self.origin, self.voxel_size
-            ));
+            )));
         }
         if self.dims.iter().any(|&d| d == 0 || d > u16::MAX as u32) {
-            return Err(format!("grid dims {:?} out of range", self.dims));
+            return Err(SectionError::Invalid(format!(
+                "grid dims {:?} out of range",
+                self.dims
+            )));
         }
         if self.tri_start.first().is_some_and(|&s| s != 0)
             || self.tri_start.windows(2).any(|w| w[0] > w[1])
             || self.tri_start.last().map_or(0, |&s| s as usize) != self.pieces.len()
         {
-            return Err("piece starts are not a monotone index of the pieces".into());
+            return Err(SectionError::Invalid(
+                "piece starts are not a monotone index of the pieces".into(),
+            ));
         }
         let in_grid = |v: [u16; 3]| (0..3).all(|k| (v[k] as u32) < self.dims[k]);
         for t in 0..self.triangles() {
             let ps = self.pieces_of(t);
             for (k, p) in ps.iter().enumerate() {
                 if !in_grid(p.voxel) {
-                    return Err(format!(
+                    return Err(SectionError::Invalid(format!(
                         "triangle {t}: piece voxel {:?} outside the grid",
                         p.voxel
-                    ));
+                    )));
                 }
                 if p.patch != NONE && p.patch as usize >= n {
-                    return Err(format!(
+                    return Err(SectionError::Invalid(format!(
                         "triangle {t}: piece patch {} out of range",
                         p.patch
-                    ));
+                    )));
                 }
                 if p.flags & !(PIECE_SUBSTITUTE | PIECE_CUT) != 0 {
-                    return Err(format!("triangle {t}: unknown piece flags {:#x}", p.flags));
+                    return Err(SectionError::Invalid(format!(
+                        "triangle {t}: unknown piece flags {:#x}",
+                        p.flags
+                    )));
                 }
                 if p.flags & PIECE_CUT != 0 && ps.get(k + 1).is_none_or(|q| q.voxel != p.voxel) {
-                    return Err(format!(
+                    return Err(SectionError::Invalid(format!(
                         "triangle {t}: cut piece in voxel {:?} without its next part",
                         p.voxel
-                    ));
+                    )));
                 }
                 // Sorted by voxel; the parts of a cut piece share one.
                 let in_chain = k > 0 && ps[k - 1].flags & PIECE_CUT != 0;
@@ -415,17 +436,19 @@ impl SurfaceMap {
                     && (voxel_key(ps[k - 1].voxel, self.dims) > voxel_key(p.voxel, self.dims)
                         || (ps[k - 1].voxel == p.voxel && !in_chain))
                 {
-                    return Err(format!("triangle {t}: pieces not sorted by voxel"));
+                    return Err(SectionError::Invalid(format!(
+                        "triangle {t}: pieces not sorted by voxel"
+                    )));
                 }
                 if k >= MAX_CUTS
                     && ps[k - MAX_CUTS..=k]
                         .iter()
                         .all(|q| q.flags & PIECE_CUT != 0)
                 {
-                    return Err(format!(
+                    return Err(SectionError::Invalid(format!(
                         "triangle {t}: a piece in voxel {:?} is cut more than {MAX_CUTS} times",
                         p.voxel
-                    ));
+                    )));
                 }
             }
         }
@@ -442,42 +465,46 @@ impl SurfaceMap {
                     .is_none_or(|p| p.flags & PIECE_CUT == 0)
             })
         {
-            return Err(format!(
+            return Err(SectionError::Invalid(format!(
                 "{} cuts for {flagged} cut pieces, unsorted or naming a piece not cut",
                 self.cuts.len()
-            ));
+            )));
         }
         if let Some((k, c)) = self.cuts.iter().find(|(_, c)| {
             let len = c.n.iter().map(|&x| x as f64 * x as f64).sum::<f64>().sqrt();
             !(c.d.is_finite() && len > 0.5 && len < 2.0)
         }) {
-            return Err(format!(
+            return Err(SectionError::Invalid(format!(
                 "piece {k}: cut plane n = {:?}, d = {} is not finite with a unit normal",
                 c.n, c.d
-            ));
+            )));
         }
         if self.patch_direction.len() != n || self.patch_direction.iter().any(|&d| d > 5) {
-            return Err(format!(
+            return Err(SectionError::Invalid(format!(
                 "{} patch directions for {n} patches, or one outside 0..6",
                 self.patch_direction.len()
-            ));
+            )));
         }
         if self.patch_voxel.len() != n || self.neighbours.len() != n {
-            return Err(format!(
+            return Err(SectionError::Invalid(format!(
                 "{} patch voxels and {} neighbour lists for {n} patches",
                 self.patch_voxel.len(),
                 self.neighbours.len()
-            ));
+            )));
         }
         if let Some(v) = self.patch_voxel.iter().find(|v| !in_grid(**v)) {
-            return Err(format!("patch voxel {v:?} outside the grid"));
+            return Err(SectionError::Invalid(format!(
+                "patch voxel {v:?} outside the grid"
+            )));
         }
         for (i, nb) in self.neighbours.iter().enumerate() {
             if let Some(&x) = nb
                 .iter()
                 .find(|&&x| x != NONE && (x as usize >= n || x as usize == i))
             {
-                return Err(format!("patch {i}: neighbour {x} out of range or itself"));
+                return Err(SectionError::Invalid(format!(
+                    "patch {i}: neighbour {x} out of range or itself"
+                )));
             }
         }
         Ok(())
@@ -540,13 +567,13 @@ impl PatchSamples {
 
     /// Reads `PSMP` for `n` patches, checking sizes, finiteness and unit
     /// normals (within `tolerance` of length 1).
-    pub fn from_bytes(b: &[u8], n: usize, tolerance: f64) -> Result<PatchSamples, String> {
+    pub fn from_bytes(b: &[u8], n: usize, tolerance: f64) -> Result<PatchSamples, SectionError> {
         let count = n * SAMPLES_PER_PATCH;
         if b.len() != count * 24 {
-            return Err(format!(
+            return Err(SectionError::Invalid(format!(
                 "{} bytes, expected {count} samples of 24 bytes for {n} patches",
                 b.len()
-            ));
+            )));
         }
         let f = |k: usize| f32::from_le_bytes(b[4 * k..4 * k + 4].try_into().unwrap());
         let s = PatchSamples {
@@ -562,22 +589,26 @@ impl PatchSamples {
     }
 
     /// Checks sizes, finiteness and unit normals.
-    pub fn check(&self, n: usize, tolerance: f64) -> Result<(), String> {
+    pub fn check(&self, n: usize, tolerance: f64) -> Result<(), SectionError> {
         let count = n * SAMPLES_PER_PATCH;
         if self.position.len() != count || self.normal.len() != count {
-            return Err(format!(
+            return Err(SectionError::Invalid(format!(
                 "{} positions and {} normals for {n} patches ({count} expected)",
                 self.position.len(),
                 self.normal.len()
-            ));
+            )));
         }
         for (i, (p, q)) in self.position.iter().zip(&self.normal).enumerate() {
             if !p.iter().chain(q).all(|v| v.is_finite()) {
-                return Err(format!("sample {i} is not finite: {p:?} {q:?}"));
+                return Err(SectionError::Invalid(format!(
+                    "sample {i} is not finite: {p:?} {q:?}"
+                )));
             }
             let len = q.iter().map(|&x| x as f64 * x as f64).sum::<f64>().sqrt();
             if (len - 1.0).abs() > tolerance {
-                return Err(format!("sample {i}: normal {q:?} has length {len}, not 1"));
+                return Err(SectionError::Invalid(format!(
+                    "sample {i}: normal {q:?} has length {len}, not 1"
+                )));
             }
         }
         Ok(())
@@ -676,27 +707,30 @@ mod tests {
                 d: 0.5,
             },
         ));
-        let e = m.check(3).unwrap_err();
+        let e = m.check(3).unwrap_err().to_string();
         assert!(e.contains("without its next part"), "{e}");
 
         let mut m = cut_chain_example();
         m.cuts.pop();
-        let e = m.check(3).unwrap_err();
+        let e = m.check(3).unwrap_err().to_string();
         assert!(e.contains("1 cuts for 2 cut pieces"), "{e}");
 
         let mut m = cut_chain_example();
         m.cuts[1].1.d = f32::NAN;
-        let e = m.check(3).unwrap_err();
+        let e = m.check(3).unwrap_err().to_string();
         assert!(e.contains("piece 1: cut plane"), "{e}");
 
         let mut m = cut_chain_example();
         m.pieces[1].flags = 0;
-        let e = m.check(3).unwrap_err();
+        let e = m.check(3).unwrap_err().to_string();
         assert!(e.contains("not sorted") || e.contains("cut pieces"), "{e}");
 
         // Truncated in the cut table.
         let b = cut_chain_example().to_bytes();
         let e = SurfaceMap::from_bytes(&b[..b.len() - 3], 3).unwrap_err();
-        assert!(e.contains("cuts"), "{e}");
+        assert!(
+            matches!(e, SectionError::Truncated { what: "cuts", .. }),
+            "{e}"
+        );
     }
 }

@@ -27,6 +27,27 @@ pub enum SceneError {
     Empty { path: PathBuf, detail: String },
 }
 
+/// An image (a texture file, or one a scene file holds) that cannot be
+/// read or decoded.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    #[error("cannot read {path}: {source}")]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("cannot decode {what}: {source}")]
+    Decode {
+        /// The file's path or the embedded image's label.
+        what: String,
+        #[source]
+        source: image::ImageError,
+    },
+    #[error("{what} has no pixels")]
+    Empty { what: String },
+}
+
 /// Errors from the OpenCL layer.
 #[derive(Debug, thiserror::Error)]
 pub enum ClError {

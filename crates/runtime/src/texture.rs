@@ -5,6 +5,7 @@
 //! albedo. (The GL renderer samples the same texture with mipmaps; its
 //! tests allow for the difference under minification.)
 
+use radiosity_core::error::ImageError;
 use radiosity_core::scene::{srgb_to_linear, DiffuseTexture, Scene, Wrap, ALBEDO_MAX};
 
 /// A linear RGB texture.
@@ -19,13 +20,12 @@ pub struct Texture {
 impl Texture {
     /// Decodes and linearises a material's texture (a file or an image the
     /// scene file holds).
-    pub fn load(texture: &DiffuseTexture) -> Result<Texture, String> {
-        let img = texture
-            .decode()
-            .map_err(|e| format!("cannot read texture: {e}"))?
-            .to_rgb8();
+    pub fn load(texture: &DiffuseTexture) -> Result<Texture, ImageError> {
+        let img = texture.decode()?.to_rgb8();
         if img.width() == 0 || img.height() == 0 {
-            return Err(format!("texture {} has no pixels", texture.describe()));
+            return Err(ImageError::Empty {
+                what: texture.describe(),
+            });
         }
         let lut: Vec<f32> = (0..256)
             .map(|v| srgb_to_linear(v as f64 / 255.0) as f32)

@@ -356,9 +356,16 @@ pub fn encode(kind: CodecKind, t: [&[f32]; 3], n: usize) -> Result<Encoded, Enco
         }
     }
     let (sparse_mass, total_mass) = {
+        // By fixed chunks, summed in order: rayon's own `sum` splits as
+        // threads steal work, so its rounding (and the report stored in
+        // the file) changed from run to run.
         let total: f64 = stored
             .iter()
-            .map(|c| c.par_iter().map(|&v| v as f64).sum::<f64>())
+            .flat_map(|c| {
+                c.par_chunks(1 << 16)
+                    .map(|k| k.iter().map(|&v| v as f64).sum::<f64>())
+                    .collect::<Vec<f64>>()
+            })
             .sum();
         let sparse: f64 = values.iter().map(|&v| v as f64).sum();
         (sparse, total)

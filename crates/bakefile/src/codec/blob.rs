@@ -7,6 +7,7 @@ use super::{
     CodecDataError, CodecKind, DenseFormat, EncodeStats, Encoded, Sparse, SparseValues, TileIndex,
     MAX_TILE,
 };
+use crate::section_error::SectionError;
 use crate::CodecBlob;
 use half::f16;
 use serde::Serialize;
@@ -246,9 +247,9 @@ impl Encoded {
         if self.scale.iter().any(|s| !s.is_finite()) || !self.log_range.is_finite() {
             return bad("non-finite scale".into());
         }
-        check_col_scale(&self.col_scale, n).map_err(|detail| CodecDataError {
+        check_col_scale(&self.col_scale, n).map_err(|e| CodecDataError {
             section: "CCOL",
-            detail,
+            detail: e.to_string(),
         })?;
         Ok(())
     }
@@ -494,16 +495,22 @@ impl Encoded {
 /// The column scales' rule ([`Encoded::col_scale`]): none, or one finite
 /// value > 0 per patch; the message names the first fault. Shared by the
 /// matrix's check and the bake file's validation before writing.
-pub fn check_col_scale(s: &[f32], n: usize) -> Result<(), String> {
+pub fn check_col_scale(s: &[f32], n: usize) -> Result<(), SectionError> {
     if !s.is_empty() && s.len() != n {
-        return Err(format!("{} column scales for {n} patches", s.len()));
+        return Err(SectionError::Length {
+            found: 4 * s.len() as u64,
+            expected: 4 * n as u64,
+            layout: format!("{} column scales for {n} patches", s.len()),
+        });
     }
     match s
         .iter()
         .enumerate()
         .find(|(_, v)| !(v.is_finite() && **v > 0.0))
     {
-        Some((j, v)) => Err(format!("column {j}'s scale is {v}: must be finite and > 0")),
+        Some((j, v)) => Err(SectionError::Invalid(format!(
+            "column {j}'s scale is {v}: must be finite and > 0"
+        ))),
         None => Ok(()),
     }
 }

@@ -5,6 +5,7 @@
 //! and the Mitsuba export decode a texture through [`DiffuseTexture::decode`]
 //! whatever its source, and the bake file's scene hash hashes its bytes.
 
+use crate::error::ImageError;
 use serde::Serialize;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -85,7 +86,7 @@ impl DiffuseTexture {
     }
 
     /// Decodes the image.
-    pub fn decode(&self) -> Result<image::DynamicImage, String> {
+    pub fn decode(&self) -> Result<image::DynamicImage, ImageError> {
         self.image.decode()
     }
 
@@ -97,17 +98,25 @@ impl DiffuseTexture {
 
 impl ImageSource {
     /// Decodes the image (format from its bytes).
-    pub fn decode(&self) -> Result<image::DynamicImage, String> {
+    pub fn decode(&self) -> Result<image::DynamicImage, ImageError> {
+        fn read(p: &std::path::Path) -> impl Fn(std::io::Error) -> ImageError + '_ {
+            move |source| ImageError::Read {
+                path: p.to_path_buf(),
+                source,
+            }
+        }
+        let decode = |source| ImageError::Decode {
+            what: self.describe(),
+            source,
+        };
         match self {
             ImageSource::File(p) => image::ImageReader::open(p)
-                .map_err(|e| format!("cannot read {}: {e}", p.display()))?
+                .map_err(read(p))?
                 .with_guessed_format()
-                .map_err(|e| format!("cannot read {}: {e}", p.display()))?
+                .map_err(read(p))?
                 .decode()
-                .map_err(|e| format!("cannot decode {}: {e}", p.display())),
-            ImageSource::Embedded { label, bytes } => {
-                image::load_from_memory(bytes).map_err(|e| format!("cannot decode {label}: {e}"))
-            }
+                .map_err(decode),
+            ImageSource::Embedded { bytes, .. } => image::load_from_memory(bytes).map_err(decode),
         }
     }
 

@@ -24,12 +24,14 @@ pub(super) fn resolve_materials(
     let mut unique: Vec<PathBuf> = used_ids.iter().filter_map(|&id| texture_of(id)).collect();
     unique.sort();
     unique.dedup();
-    let decoded: HashMap<PathBuf, Result<[f64; 3], String>> = unique
+    let decoded: HashMap<PathBuf, Result<[f64; 3], ImageError>> = unique
         .into_par_iter()
         .map(|p| {
-            let mean = ImageSource::File(p.clone())
-                .decode()
-                .and_then(|image| texture_mean_linear(&image));
+            let mean = ImageSource::File(p.clone()).decode().and_then(|image| {
+                texture_mean_linear(&image).ok_or_else(|| ImageError::Empty {
+                    what: p.display().to_string(),
+                })
+            });
             (p, mean)
         })
         .collect();
@@ -118,11 +120,12 @@ pub(super) fn texture_file_name(spec: &str) -> String {
 
 /// The mean of a decoded texture's RGB in linear space: each sample is
 /// converted from sRGB with the exact EOTF, then averaged. Alpha is
-/// ignored; grey images count as equal R, G and B.
-pub(super) fn texture_mean_linear(image: &image::DynamicImage) -> Result<[f64; 3], String> {
+/// ignored; grey images count as equal R, G and B. `None` for an image
+/// without pixels.
+pub(super) fn texture_mean_linear(image: &image::DynamicImage) -> Option<[f64; 3]> {
     let pixels = u64::from(image.width()) * u64::from(image.height());
     if pixels == 0 {
-        return Err("the image has no pixels".to_owned());
+        return None;
     }
     use image::DynamicImage as D;
     let mean = match image {
@@ -142,7 +145,7 @@ pub(super) fn texture_mean_linear(image: &image::DynamicImage) -> Result<[f64; 3
             sum.map(|s| s / pixels as f64)
         }
     };
-    Ok(mean)
+    Some(mean)
 }
 
 /// Linear mean of 8-bit sRGB samples with `stride` bytes per pixel, of

@@ -23,6 +23,7 @@
 //! vertex) and bad coordinates (which it accepts) are located afterwards by
 //! a streaming second scan of the file that runs only on that error path.
 
+use crate::error::ImageError;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::cell::RefCell;

@@ -142,7 +142,7 @@ pub(super) fn resolve_material(
             let img = t.decode().map_err(|e| format!("baseColorTexture: {e}"))?;
             Some((
                 texture_mean_linear(&img)
-                    .map_err(|e| format!("baseColorTexture {}: {e}", t.describe()))?,
+                    .ok_or_else(|| format!("baseColorTexture {} has no pixels", t.describe()))?,
                 t,
             ))
         }
@@ -163,7 +163,7 @@ pub(super) fn resolve_material(
         let t = texture_of(doc, &info.texture(), dir, buffers)?;
         let img = t.decode().map_err(|e| format!("emissiveTexture: {e}"))?;
         let mean = texture_mean_linear(&img)
-            .map_err(|e| format!("emissiveTexture {}: {e}", t.describe()))?;
+            .ok_or_else(|| format!("emissiveTexture {} has no pixels", t.describe()))?;
         for k in 0..3 {
             radiance[k] *= mean[k];
         }

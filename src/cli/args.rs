@@ -1,19 +1,10 @@
 //! The command line's flags as clap parses them: the subcommands and their
-//! raw arguments, turned into the library's validated configs by the
-//! commands (`main.rs`, `frames.rs`, `reports.rs`), and the names of the
-//! flags that set the library's options, for its errors.
+//! raw arguments, turned into checked jobs by [`super::config`].
 
-use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
-use radiosity::bake::error::BakeError;
-use radiosity::bake::form_factor::{FormFactorMethod, FormFactorOptions};
-use radiosity::bake::reorder::ReorderMethod;
-use radiosity::bake::transfer::{Bounces, InfiniteMethod, TransferOptions};
-use radiosity::bake::voxelize::Resolution;
-use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
-use radiosity::bakefile::codec::CodecKind;
+use radiosity::bake;
+use radiosity::bake::transfer::Bounces;
 use radiosity::bench;
-use radiosity::core::compute::DeviceSelection;
 use std::path::PathBuf;
 
 #[derive(Parser)]
@@ -591,111 +582,6 @@ pub(crate) struct BakeArgs {
     /// Print the report as JSON on stdout.
     #[arg(long)]
     pub(crate) json: bool,
-}
-
-impl BakeArgs {
-    /// Raw flags → validated config.
-    pub(crate) fn into_config(self) -> anyhow::Result<(BakeConfig, bool)> {
-        let resolution = match (self.voxel_size, self.patches) {
-            (Some(s), _) => Resolution::VoxelSize(s),
-            (None, Some(n)) => Resolution::Patches(n),
-            (None, None) => Resolution::Patches(2000),
-        };
-        let compute = if self.cpu_reference {
-            ComputeChoice::CpuReference
-        } else {
-            ComputeChoice::OpenCl(DeviceSelection::from_flag_or_env(self.device.device)?)
-        };
-        let mut form_factor = FormFactorOptions::default();
-        if let Some(m) = &self.form_factors {
-            form_factor.method = FormFactorMethod::parse(m)
-                .with_context(|| format!("--form-factors {m:?}: expected rays or contour"))?;
-        }
-        if let Some(r) = self.ff_rays_per_patch {
-            form_factor.rays_per_patch = r;
-        }
-        if let Some(m) = self.ff_samples {
-            form_factor.samples = m;
-        }
-        if let Some(r) = self.ff_rays {
-            form_factor.rays = r;
-        }
-        let mut transfer = TransferOptions {
-            bounces: self.bounces.unwrap_or_default(),
-            ..TransferOptions::default()
-        };
-        if let Some(m) = &self.infinite_by {
-            transfer.infinite = InfiniteMethod::parse(m)
-                .with_context(|| format!("--infinite-by {m:?}: expected solve or doubling"))?;
-        }
-        let codec = match (self.max_error, self.codec, self.top_fraction) {
-            (Some(e), _, _) => CodecChoice::MaxError(e),
-            (None, None, None) => CodecChoice::default(),
-            (None, name, top) => {
-                let mut kind = match name {
-                    Some(n) => CodecKind::parse(&n).context("option --codec")?,
-                    None => CodecKind::default(),
-                };
-                if let Some(f) = top {
-                    kind = kind
-                        .with_top_fraction(f)
-                        .with_context(|| format!("--top-fraction {f} with --codec {kind}"))?;
-                }
-                CodecChoice::Fixed(kind)
-            }
-        };
-        let reorder = self
-            .reorder
-            .as_deref()
-            .map(ReorderMethod::parse)
-            .transpose()
-            .map_err(with_flag)?;
-        let config = BakeConfig {
-            scene: self.scene,
-            resolution,
-            compute,
-            form_factor,
-            transfer,
-            reorder,
-            codec,
-            error_lights: self.error_lights,
-            two_sided: self.two_sided,
-            as_wound: self.as_wound,
-            near_field_rays: self.near_field_rays,
-            near_field_min_form_factor: self.near_field_min_form_factor,
-            output: self.output,
-            export: self.export,
-        };
-        config.validate().map_err(with_flag)?;
-        Ok((config, self.json))
-    }
-}
-
-/// The command-line flag that sets a library option (library messages name
-/// options, not flags).
-pub(crate) fn flag_of(option: &str) -> Option<&'static str> {
-    Some(match option {
-        "voxel size" => "--voxel-size",
-        "patch count" => "--patches",
-        "maximum codec error" => "--max-error",
-        "error lights" => "--error-lights",
-        "reordering" | "greedy reordering passes" => "--reorder",
-        "form-factor samples per side" => "--ff-samples",
-        "form-factor rays per pair" => "--ff-rays",
-        "form-factor rays per patch" => "--ff-rays-per-patch",
-        "near-field rays per patch" => "--near-field-rays",
-        "near-field minimum form factor" => "--near-field-min-form-factor",
-        "bounces" => "--bounces",
-        _ => return None,
-    })
-}
-
-/// A bake error, with the flag of the option at fault named.
-pub(crate) fn with_flag(e: BakeError) -> anyhow::Error {
-    match e.option().and_then(flag_of) {
-        Some(flag) => anyhow::Error::new(e).context(format!("option {flag}")),
-        None => e.into(),
-    }
 }
 
 /// `--bounces`: a positive integer or `inf`.
