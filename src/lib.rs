@@ -113,8 +113,10 @@
 //!   field, the records their schema and version, and the codec every
 //!   index, offset and value before the run time may read it.
 //! - Library errors are typed ([`bake::error::BakeError`],
-//!   [`bakefile::BakeFileError`], [`bakefile::baked::LoadError`],
-//!   [`core::error`]) and name options and values, never command-line flags.
+//!   [`bakefile::BakeFileError`] with [`bakefile::SectionError`] inside,
+//!   [`bakefile::baked::LoadError`], [`runtime::open::OpenError`],
+//!   [`core::error`]) and name options and values, never command-line
+//!   flags; `anyhow` is the binary's alone.
 //! - Albedo components are below 1 ([`core::scene::ALBEDO_MAX`]), so the
 //!   infinite-bounce series converges.
 //! - Memory is proportional to occupied voxels, never to the grid volume.

@@ -83,13 +83,13 @@ pub struct SweepOptions {
 }
 
 impl SweepOptions {
-    /// The CI sweep: the Cornell box at 256 and 1,000 patches; 1 and 3
+    /// The CI sweep: the Cornell box at 256 and 600 patches; 1 and 3
     /// bounces, BC1 without its exact sparse part (the thesis's plain
     /// BC1), no reordering.
     pub fn quick(cornell: SweepScene, out: PathBuf, selection: DeviceSelection) -> SweepOptions {
         SweepOptions {
             scenes: vec![cornell],
-            patches: vec![256, 1000],
+            patches: vec![256, 600],
             bounces: vec![1, 3],
             codecs: vec![CodecKind::parse("bc1:top=0").expect("a valid codec setting")],
             reorders: vec![ReorderMethod::None],

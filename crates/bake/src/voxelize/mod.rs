@@ -49,7 +49,7 @@
 //! lifted [`CONNECT_LIFT`] voxels off their surfaces, crosses no triangle
 //! other than ones facing the same direction within [`CONNECT_OWN`] of an
 //! end (their own surface curving across the chord)
-//! ([`Bvh::surface_segment_clear`]). Components smaller than
+//! ([`radiosity_core::bvh::Bvh::surface_segment_clear`]). Components smaller than
 //! [`SMALL_COMPONENT`] voxel faces (relief: a moulding's step, a bit of
 //! ornament) join the nearest component they reach over a lift of
 //! [`RELIEF_LIFT`] voxels, so relief lower than that does not split a
