@@ -129,68 +129,7 @@ pub(crate) enum BenchCommand {
     /// run: sweep.json, sweep.md and log-log Pareto plots (SVG) in -o DIR.
     /// Fails when a value is non-finite or a baseline error exceeds its
     /// bound. --quick is the CI sweep (the Cornell box, a few minutes).
-    Sweep {
-        /// The CI sweep: the Cornell box at 256 and 1,000 patches, 1 and 3
-        /// bounces, BC1 without its sparse part, no reordering.
-        #[arg(long)]
-        quick: bool,
-        /// Scenes: SCENE.obj (camera and lights in SCENE.json beside it) or
-        /// SCENE.obj=LIGHTS.json (default: the Cornell box, the interior,
-        /// and ../shared/scenes/sponza/sponza.obj when present).
-        #[arg(long, value_delimiter = ',')]
-        scenes: Vec<String>,
-        /// Patch counts (default 500,2000,4000).
-        #[arg(long, value_delimiter = ',')]
-        patches: Vec<usize>,
-        /// Bounce counts besides the baseline's ∞ (default 1,2,3).
-        #[arg(long, value_delimiter = ',')]
-        bounces: Vec<u32>,
-        /// Fixed codecs besides the baseline's choice, separated by ';'
-        /// (default "bc1:top=0;bc4;bc6h;f16").
-        #[arg(long)]
-        codecs: Option<String>,
-        /// Reorderings besides the default (default none,hilbert).
-        #[arg(long, value_delimiter = ',')]
-        reorders: Vec<String>,
-        #[arg(long, default_value_t = 3)]
-        repeat: usize,
-        /// Leave out the GL frame.
-        #[arg(long)]
-        no_gl: bool,
-        /// Only the baseline bakes (no bounce, codec or reordering
-        /// variants).
-        #[arg(long)]
-        baseline_only: bool,
-        /// The report's directory (the committed reports are docs/sweep
-        /// and docs/sweep-mitsuba: name one to update it).
-        #[arg(short, long, default_value = "out/sweep")]
-        output: PathBuf,
-        /// The bound on a baseline point's relative RMS error of H.
-        #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
-        max_error: f64,
-        /// The bound on a baseline point's indirect image error against
-        /// Mitsuba 3 (noise removed).
-        #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
-        max_image_error: f64,
-        /// Leave out the image errors against Mitsuba 3.
-        #[arg(long)]
-        no_images: bool,
-        /// Where the Mitsuba 3 references are, one folder per scene stem;
-        /// a missing one is made by scripts/mitsuba-reference (default:
-        /// OUTPUT/reference).
-        #[arg(long, value_name = "DIR")]
-        references: Option<PathBuf>,
-        /// Size of the reference images, WxH (default 320x240; quick
-        /// 160x120).
-        #[arg(long, value_name = "WxH")]
-        reference_size: Option<String>,
-        /// Samples per pixel of a reference made by the sweep (default
-        /// 1024; quick 512).
-        #[arg(long)]
-        reference_spp: Option<u32>,
-        #[command(flatten)]
-        device: DeviceArgs,
-    },
+    Sweep(SweepArgs),
     /// A bake's patch irradiance against an independent Monte Carlo path
     /// tracer on the original triangles (bias, relative RMS, the first
     /// reflection and later bounces, form-factor row sums).
@@ -601,4 +540,69 @@ pub(crate) fn parse_bounces(s: &str) -> Result<Bounces, String> {
 /// and with H).
 fn view_keys() -> String {
     format!("Keys in the window:\n{}", radiosity::viewer::HELP)
+}
+
+/// The flags of `bench sweep`.
+#[derive(Args)]
+pub(crate) struct SweepArgs {
+    /// The CI sweep: the Cornell box at 256 and 600 patches, 1 and 3
+    /// bounces, BC1 without its sparse part, no reordering.
+    #[arg(long)]
+    pub(crate) quick: bool,
+    /// Scenes: SCENE.obj (camera and lights in SCENE.json beside it) or
+    /// SCENE.obj=LIGHTS.json (default: the Cornell box, the interior,
+    /// and ../shared/scenes/sponza/sponza.obj when present).
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) scenes: Vec<String>,
+    /// Patch counts (default 500,2000,4000).
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) patches: Vec<usize>,
+    /// Bounce counts besides the baseline's ∞ (default 1,2,3).
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) bounces: Vec<u32>,
+    /// Fixed codecs besides the baseline's choice, separated by ';'
+    /// (default "bc1:top=0;bc4;bc6h;f16").
+    #[arg(long)]
+    pub(crate) codecs: Option<String>,
+    /// Reorderings besides the default (default none,hilbert).
+    #[arg(long, value_delimiter = ',')]
+    pub(crate) reorders: Vec<String>,
+    #[arg(long, default_value_t = 3)]
+    pub(crate) repeat: usize,
+    /// Leave out the GL frame.
+    #[arg(long)]
+    pub(crate) no_gl: bool,
+    /// Only the baseline bakes (no bounce, codec or reordering
+    /// variants).
+    #[arg(long)]
+    pub(crate) baseline_only: bool,
+    /// The report's directory (the committed reports are docs/sweep
+    /// and docs/sweep-mitsuba: name one to update it).
+    #[arg(short, long, default_value = "out/sweep")]
+    pub(crate) output: PathBuf,
+    /// The bound on a baseline point's relative RMS error of H.
+    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
+    pub(crate) max_error: f64,
+    /// The bound on a baseline point's indirect image error against
+    /// Mitsuba 3 (noise removed).
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    pub(crate) max_image_error: f64,
+    /// Leave out the image errors against Mitsuba 3.
+    #[arg(long)]
+    pub(crate) no_images: bool,
+    /// Where the Mitsuba 3 references are, one folder per scene stem;
+    /// a missing one is made by scripts/mitsuba-reference (default:
+    /// OUTPUT/reference).
+    #[arg(long, value_name = "DIR")]
+    pub(crate) references: Option<PathBuf>,
+    /// Size of the reference images, WxH (default 320x240; quick
+    /// 160x120).
+    #[arg(long, value_name = "WxH")]
+    pub(crate) reference_size: Option<String>,
+    /// Samples per pixel of a reference made by the sweep (default
+    /// 1024; quick 512).
+    #[arg(long)]
+    pub(crate) reference_spp: Option<u32>,
+    #[command(flatten)]
+    pub(crate) device: DeviceArgs,
 }

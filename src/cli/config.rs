@@ -7,7 +7,9 @@
 //! would overwrite an input, places that cannot take an output, a camera
 //! inside no scene.
 
-use super::args::{BakeArgs, BenchCommand, Cli, Command, DeviceArgs, RenderArgs, ViewArgs};
+use super::args::{
+    BakeArgs, BenchCommand, Cli, Command, DeviceArgs, RenderArgs, SweepArgs, ViewArgs,
+};
 use crate::outputs::{self, ImageFormat};
 use anyhow::{bail, Context as _};
 use radiosity::bake::error::BakeError;
@@ -228,43 +230,7 @@ fn bench_job(which: BenchCommand) -> anyhow::Result<Job> {
             output,
             device,
         } => Job::Skips(skips(scenes, patches, repeat, output, device)?),
-        BenchCommand::Sweep {
-            quick,
-            scenes,
-            patches,
-            bounces,
-            codecs,
-            reorders,
-            repeat,
-            no_gl,
-            baseline_only,
-            output,
-            max_error,
-            max_image_error,
-            no_images,
-            references,
-            reference_size,
-            reference_spp,
-            device,
-        } => Job::Sweep(sweep(SweepFlags {
-            quick,
-            scenes,
-            patches,
-            bounces,
-            codecs,
-            reorders,
-            repeat,
-            gl: !no_gl,
-            baseline_only,
-            output,
-            max_error,
-            max_image_error,
-            no_images,
-            references,
-            reference_size,
-            reference_spp,
-            device,
-        })?),
+        BenchCommand::Sweep(args) => Job::Sweep(sweep(args)?),
         BenchCommand::Frame {
             bake,
             camera_lights,
@@ -649,29 +615,8 @@ fn check_cull(cull: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The flags of `bench sweep`.
-struct SweepFlags {
-    quick: bool,
-    scenes: Vec<String>,
-    patches: Vec<usize>,
-    bounces: Vec<u32>,
-    codecs: Option<String>,
-    reorders: Vec<String>,
-    repeat: usize,
-    gl: bool,
-    baseline_only: bool,
-    output: PathBuf,
-    max_error: f64,
-    max_image_error: f64,
-    no_images: bool,
-    references: Option<PathBuf>,
-    reference_size: Option<String>,
-    reference_spp: Option<u32>,
-    device: DeviceArgs,
-}
-
 /// `bench sweep`'s flags → its options.
-fn sweep(a: SweepFlags) -> anyhow::Result<SweepOptions> {
+fn sweep(a: SweepArgs) -> anyhow::Result<SweepOptions> {
     let selection = selection(a.device)?;
     if a.repeat == 0 {
         bail!("--repeat must be at least 1");
@@ -715,7 +660,7 @@ fn sweep(a: SweepFlags) -> anyhow::Result<SweepOptions> {
                 .collect::<Result<_, _>>()?,
             reorders: vec![ReorderMethod::None, ReorderMethod::SpaceFillingCurve],
             repeat: a.repeat,
-            gl: a.gl,
+            gl: !a.no_gl,
             selection,
             out: a.output.clone(),
             max_h_error: a.max_error,
@@ -756,7 +701,7 @@ fn sweep(a: SweepFlags) -> anyhow::Result<SweepOptions> {
     }
     if a.quick {
         options.repeat = a.repeat.min(2);
-        options.gl = a.gl;
+        options.gl = !a.no_gl;
         options.max_h_error = a.max_error;
         options.max_image_error = a.max_image_error.min(options.max_image_error);
     }
