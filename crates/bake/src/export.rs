@@ -6,9 +6,13 @@ use super::form_factor::{self, FormFactors};
 use super::pieces::PieceGeo;
 use super::preview;
 use super::transfer::Transfer;
+use super::voxelize::Voxelization;
 use crate::error::BakeError;
+use radiosity_bakefile::codec::Encoded;
 use radiosity_core::npy;
 use radiosity_core::patch::Patch;
+use radiosity_core::permutation::Permutation;
+use radiosity_core::scene::Scene;
 use std::io::Write;
 use std::path::Path;
 
@@ -126,4 +130,54 @@ fn export_error(path: &Path, e: impl std::fmt::Display) -> BakeError {
         path: path.to_path_buf(),
         detail: e.to_string(),
     }
+}
+
+/// What [`export_bake`] writes out: a finished bake's parts.
+pub struct Bake<'a> {
+    pub scene_path: &'a Path,
+    pub scene: &'a Scene,
+    pub vox: &'a Voxelization,
+    /// Per voxel patch, its index in matrix order (`None`: dropped).
+    pub patch_index_of: &'a [Option<u32>],
+    pub patches: &'a [Patch],
+    pub form_factors: &'a FormFactors,
+    pub transfer: &'a Transfer,
+    pub albedo: &'a [[f32; 3]],
+    pub encoded: &'a Encoded,
+    pub permutation: &'a Permutation,
+}
+
+/// The bake's inspection files in `dir` ([`export`]'s, the pieces with
+/// their owners), and the matrix as the run time decodes it, in the order
+/// of `patches.csv` (`T_decoded.npy`).
+pub fn export_bake(dir: &Path, b: Bake) -> Result<(), BakeError> {
+    let n = b.form_factors.n;
+    let geo = crate::pieces::geometry(b.scene, b.vox);
+    let owner: Vec<Option<u32>> = b
+        .vox
+        .pieces
+        .iter()
+        .map(|p| p.patch.and_then(|v| b.patch_index_of[v as usize]))
+        .collect();
+    export(
+        dir,
+        b.scene_path,
+        b.scene.bounds(),
+        b.patches,
+        (&geo, &owner),
+        b.form_factors,
+        b.transfer,
+        b.albedo,
+    )?;
+    let inverse = Permutation::from_order(b.permutation.inverse.clone())?;
+    let decoded = b.encoded.decode();
+    let mut flat = Vec::with_capacity(3 * n * n);
+    for c in &decoded {
+        flat.extend_from_slice(&inverse.apply_symmetric(c, n));
+    }
+    let path = dir.join("T_decoded.npy");
+    npy::write_f32(&path, &[3, n, n], &flat).map_err(|e| BakeError::Export {
+        path: path.clone(),
+        detail: e.to_string(),
+    })
 }

@@ -49,7 +49,6 @@ use error::BakeError;
 use form_factor::FormFactors;
 use radiosity_bakefile::codec::Encoded;
 use radiosity_bakefile::{self as bakefile, BakeFile, SceneHash};
-use radiosity_core::npy;
 use radiosity_core::patch::Patch;
 use radiosity_core::permutation::Permutation;
 use radiosity_core::scene::{self};
@@ -122,80 +121,61 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> Result<BakeOu
     let n = ff.n;
     let method = config.reorder.unwrap_or(ReorderMethod::default_for(n));
     progress(&format!("reordering {n} patches ({method})"));
-    let t = Instant::now();
-    let t_ref: [&[f32]; 3] = [tr.channel(0), tr.channel(1), tr.channel(2)];
-    let sp = spinner("reorder");
-    let (perm, reorder_stats) =
-        reorder::reorder_with_stats(method, t_ref, n, &patches, backend_of(&gpu))?;
-    sp.finish_and_clear();
-    let mut permuted: Vec<Vec<f32>> = tr
-        .channels
-        .iter()
-        .map(|c| perm.apply_symmetric(c, n))
-        .collect();
-    stages.push(StageTime {
-        stage: "reorder",
-        seconds: t.elapsed().as_secs_f64(),
-    });
+    let (perm, mut permuted, reorder_stats) = timed_stage(&mut stages, "reorder", false, || {
+        let t_ref: [&[f32]; 3] = [tr.channel(0), tr.channel(1), tr.channel(2)];
+        let (perm, stats) =
+            reorder::reorder_with_stats(method, t_ref, n, &patches, backend_of(&gpu))?;
+        let permuted: Vec<Vec<f32>> = tr
+            .channels
+            .iter()
+            .map(|c| perm.apply_symmetric(c, n))
+            .collect();
+        Ok((perm, permuted, stats))
+    })?;
 
-    // Stage 6: the codec, chosen and measured (`codec_choice`).
-    let t = Instant::now();
+    // Stage 6: the codec, chosen and measured (`codec_choice`; its own
+    // progress bars).
     let Encoding {
         encoded,
         summary,
         error_lights,
-    } = codec_choice::encode(config, &scene, &patches, &perm, &mut permuted, n, progress)?;
-    stages.push(StageTime {
-        stage: "encode",
-        seconds: t.elapsed().as_secs_f64(),
-    });
+    } = timed_stage(&mut stages, "encode", true, || {
+        codec_choice::encode(config, &scene, &patches, &perm, &mut permuted, n, progress)
+    })?;
 
-    // Stage 7: the mesh-to-patch map (indices in matrix order, before
-    // reordering, as the file's patches).
-    progress("mesh-to-patch map");
-    let t = Instant::now();
+    // Stage 7: what the run time needs per vertex, pixel and neighbour,
+    // indices in matrix order (before reordering, as the file's patches).
     let mut patch_index_of = vec![None; vox.patches.len()];
     for (m, &v) in ff.kept.iter().enumerate() {
         patch_index_of[v] = Some(m as u32);
     }
-    let sp = spinner("mesh map");
-    let map = mesh_map::build(&scene, &vox, &patch_index_of)?;
-    sp.finish_and_clear();
-    stages.push(StageTime {
-        stage: "mesh map",
-        seconds: t.elapsed().as_secs_f64(),
-    });
+    progress("mesh-to-patch map");
+    let map = timed_stage(&mut stages, "mesh map", false, || {
+        mesh_map::build(&scene, &vox, &patch_index_of)
+    })?;
     progress("surface map and patch sample points");
-    let t = Instant::now();
-    let sp = spinner("surface map");
     let (surface_map, samples, surface_stats) =
-        surface_map::build(&scene, &vox, &patch_index_of, n)?;
-    sp.finish_and_clear();
-    stages.push(StageTime {
-        stage: "surface map",
-        seconds: t.elapsed().as_secs_f64(),
-    });
+        timed_stage(&mut stages, "surface map", false, || {
+            surface_map::build(&scene, &vox, &patch_index_of, n)
+        })?;
     progress(&format!(
         "near-field correction ({} rays per patch)",
         config.near_field_rays
     ));
-    let sp = spinner("near field");
-    let (near_field, near_field_stats) = near_field::build(
-        &scene,
-        &vox,
-        &patch_index_of,
-        &samples,
-        n,
-        config.near_field_rays,
-        config.near_field_min_form_factor,
-    )?;
-    sp.finish_and_clear();
-    stages.push(StageTime {
-        stage: "near field",
-        seconds: near_field_stats.seconds,
-    });
+    let (near_field, near_field_stats) = timed_stage(&mut stages, "near field", false, || {
+        near_field::build(
+            &scene,
+            &vox,
+            &patch_index_of,
+            &samples,
+            n,
+            config.near_field_rays,
+            config.near_field_min_form_factor,
+        )
+    })?;
 
-    // Stage 8: the bake file (`assemble`).
+    // Stage 8: the bake file (`assemble`), written, and the inspection
+    // files (`export`).
     let file = assemble::bake_file(assemble::Parts {
         config,
         scene: &scene,
@@ -216,49 +196,29 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> Result<BakeOu
     });
     if let Some(out) = &config.output {
         progress(&format!("writing {}", out.display()));
-        let t = Instant::now();
-        bakefile::write(out, &file)?;
-        stages.push(StageTime {
-            stage: "write",
-            seconds: t.elapsed().as_secs_f64(),
-        });
+        timed_stage(&mut stages, "write", false, || {
+            Ok(bakefile::write(out, &file)?)
+        })?;
     }
-
     if let Some(dir) = &config.export {
         progress(&format!("exporting to {}", dir.display()));
-        let t = Instant::now();
-        let geo = pieces::geometry(&scene, &vox);
-        let owner: Vec<Option<u32>> = vox
-            .pieces
-            .iter()
-            .map(|p| p.patch.and_then(|v| patch_index_of[v as usize]))
-            .collect();
-        export::export(
-            dir,
-            &config.scene,
-            scene.bounds(),
-            &patches,
-            (&geo, &owner),
-            &ff,
-            &tr,
-            &albedo,
-        )?;
-        // The matrix as the run time sees it, in the order of patches.csv.
-        let inverse = Permutation::from_order(perm.inverse.clone())?;
-        let decoded = encoded.decode();
-        let mut flat = Vec::with_capacity(3 * n * n);
-        for c in &decoded {
-            flat.extend_from_slice(&inverse.apply_symmetric(c, n));
-        }
-        let path = dir.join("T_decoded.npy");
-        npy::write_f32(&path, &[3, n, n], &flat).map_err(|e| BakeError::Export {
-            path: path.clone(),
-            detail: e.to_string(),
+        timed_stage(&mut stages, "export", false, || {
+            export::export_bake(
+                dir,
+                export::Bake {
+                    scene_path: &config.scene,
+                    scene: &scene,
+                    vox: &vox,
+                    patch_index_of: &patch_index_of,
+                    patches: &patches,
+                    form_factors: &ff,
+                    transfer: &tr,
+                    albedo: &albedo,
+                    encoded: &encoded,
+                    permutation: &perm,
+                },
+            )
         })?;
-        stages.push(StageTime {
-            stage: "export",
-            seconds: t.elapsed().as_secs_f64(),
-        });
     }
 
     Ok(BakeOutput {
@@ -285,6 +245,28 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> Result<BakeOu
         encoded,
         file,
     })
+}
+
+/// Runs `f` as the stage `name`, its time recorded in `stages`, with a
+/// spinner while it runs unless the stage draws its own progress bars
+/// (`bars`).
+fn timed_stage<T>(
+    stages: &mut Vec<StageTime>,
+    name: &'static str,
+    bars: bool,
+    f: impl FnOnce() -> Result<T, BakeError>,
+) -> Result<T, BakeError> {
+    let t = Instant::now();
+    let sp = (!bars).then(|| spinner(name));
+    let out = f();
+    if let Some(sp) = sp {
+        sp.finish_and_clear();
+    }
+    stages.push(StageTime {
+        stage: name,
+        seconds: t.elapsed().as_secs_f64(),
+    });
+    out
 }
 
 /// What bake steps 1–4 leave: the scene, its voxel patches, the form
