@@ -83,6 +83,7 @@ fn assert_dark_room(
         "{what}: both rooms have patches, the lit one light"
     );
     let config = scene_config::SceneConfig {
+        sky: None,
         emission: BTreeMap::new(),
         camera,
         lights: vec![light],

@@ -667,6 +667,7 @@ fn every_scene_is_valid() {
 
 fn sample_config() -> SceneConfig {
     SceneConfig {
+        sky: None,
         emission: Default::default(),
         camera: Camera {
             position: [1.0, 2.0, 3.0],

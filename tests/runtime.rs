@@ -465,6 +465,7 @@ fn a_wall_of_two_triangles_shows_a_smooth_gradient_of_indirect_light() {
     rt.frame(&[point([0.3, 1.0, 2.0], 2.0)], &BTreeMap::new());
     // Looking straight down at the floor.
     let config = scene_config::SceneConfig {
+        sky: None,
         emission: BTreeMap::new(),
         camera: scene_config::Camera {
             position: [2.0, 6.0, 2.0],

@@ -130,6 +130,7 @@ fn a_model_wound_either_way_renders_as_the_one_wound_right() {
     right.frame(std::slice::from_ref(&light), &BTreeMap::new());
     for (k, camera) in cameras().into_iter().enumerate() {
         let config = SceneConfig {
+            sky: None,
             emission: BTreeMap::new(),
             camera,
             lights: vec![light.clone()],

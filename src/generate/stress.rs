@@ -71,6 +71,7 @@ fn camera(position: [f32; 3], target: [f32; 3], fov: f32) -> Camera {
 
 fn config(camera: Camera, description: &str) -> SceneConfig {
     SceneConfig {
+        sky: None,
         emission: Default::default(),
         camera,
         lights: Vec::new(),

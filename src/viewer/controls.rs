@@ -350,6 +350,7 @@ mod tests {
     #[test]
     fn light_edits_move_scale_recolour_add_and_remove() {
         let config = SceneConfig {
+            sky: None,
             camera: camera(),
             lights: vec![Light::Spot {
                 position: [0.0, 3.0, 0.0],
@@ -423,6 +424,7 @@ mod tests {
     #[test]
     fn held_keys_and_wheels_stop_at_finite_bounds() {
         let config = SceneConfig {
+            sky: None,
             camera: camera(),
             lights: vec![Light::Point {
                 position: [0.0, 3.0, 0.0],

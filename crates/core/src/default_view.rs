@@ -136,6 +136,7 @@ pub fn config_for(scene: &Scene) -> SceneConfig {
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
         return SceneConfig {
+            sky: None,
             camera: a.camera.clone().expect("checked"),
             lights: a.lights.clone(),
             units: "metres".to_string(),
@@ -276,6 +277,7 @@ pub fn default_config(scene: &Scene) -> (SceneConfig, Placement) {
             ),
         };
         let config = SceneConfig {
+            sky: None,
             camera,
             lights: vec![light],
             units,
@@ -320,6 +322,7 @@ pub fn default_config(scene: &Scene) -> (SceneConfig, Placement) {
     };
     let h = normalize([-v[0], 0.0, -v[2]]);
     let config = SceneConfig {
+        sky: None,
         camera,
         lights: vec![sun(h)],
         units,

@@ -19,3 +19,5 @@ pub mod permutation;
 pub mod polygon;
 pub mod scene;
 pub mod scene_config;
+pub mod sh;
+pub mod sky;

@@ -38,6 +38,9 @@ pub struct SceneConfig {
     /// (0 switches it off); materials not listed keep scale 1.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub emission: BTreeMap<String, f32>,
+    /// The sky ([`crate::sky`]); none: black, as before skies existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sky: Option<crate::sky::Sky>,
 }
 
 /// The farthest a camera may be from the scene's centre, in scene
@@ -263,6 +266,9 @@ impl SceneConfig {
                     "an emission scale must be a finite number ≥ 0",
                 ));
             }
+        }
+        if let Some(sky) = &self.sky {
+            sky.validate()?;
         }
         for (i, light) in self.lights.iter().enumerate() {
             let f = |name: &str| format!("lights[{i}].{name}");

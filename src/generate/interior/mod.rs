@@ -700,6 +700,7 @@ pub(super) fn build() -> Result<GeneratedScene, usize> {
     s.exterior();
 
     let config = SceneConfig {
+        sky: None,
         emission: Default::default(),
         camera: Camera {
             position: [9.0, 1.7, 7.3],

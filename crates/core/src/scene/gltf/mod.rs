@@ -301,6 +301,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     // The lights and camera must be ones the run time accepts (a node
     // scaled to zero leaves a light without a direction).
     let check = crate::scene_config::SceneConfig {
+        sky: None,
         camera: authored.camera.clone().unwrap_or(Camera {
             position: [0.0, 0.0, 1.0],
             target: [0.0; 3],
