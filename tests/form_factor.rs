@@ -641,6 +641,7 @@ fn npy_export() {
         n: 23171,
         f: Vec::new(),
         kept: Vec::new(),
+        sky: Vec::new(),
         stats: Default::default(),
     };
     let err = form_factor::write_f_npy(&p, &huge).unwrap_err().to_string();

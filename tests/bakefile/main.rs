@@ -73,6 +73,7 @@ fn sample() -> BakeFile {
         surface_map: SurfaceMap::without_geometry(5),
         samples: PatchSamples::at_centres(&centres),
         near_field: NearField::default(),
+        sky: Default::default(),
         patches,
     }
 }

@@ -1,5 +1,5 @@
-//! The optional sections: the near-field correction and the column
-//! scales, their round trips and their rejections.
+//! The optional sections: the near-field correction, the sky transfer and
+//! the column scales, their round trips and their rejections.
 
 use super::*;
 
@@ -202,4 +202,40 @@ fn column_scales_round_trip_and_are_checked() {
     assert!(encode(&bad).is_err());
     bad.codec.col_scale.pop();
     assert!(encode(&bad).is_err());
+}
+
+/// The sample file with a sky transfer: patch 2 open to the whole upper
+/// hemisphere (band 0 `π Y_00`), the others partly.
+fn with_sky() -> BakeFile {
+    let open = std::f32::consts::PI * 0.282_094_8;
+    BakeFile {
+        sky: radiosity::bakefile::sky::SkyVisibility {
+            rays: 256,
+            transfer: (0..5)
+                .map(|i| {
+                    let mut t = [0.0f32; 9];
+                    t[0] = if i == 2 { open } else { open * i as f32 / 8.0 };
+                    t[2] = 0.3 * t[0];
+                    t
+                })
+                .collect(),
+        },
+        ..sample()
+    }
+}
+
+#[test]
+fn sky_round_trips_and_is_optional() {
+    let bf = with_sky();
+    let bytes = encode(&bf).unwrap();
+    assert_eq!(parse(&bytes).unwrap(), bf);
+    // Without it, no SKYV section, and it reads back as none.
+    let plain = encode(&sample()).unwrap();
+    assert!(!plain.windows(4).any(|w| w == b"SKYV"));
+    assert!(parse(&plain).unwrap().sky.is_empty());
+    // A coefficient out of range is refused naming the section and patch.
+    let mut bad = with_sky();
+    bad.sky.transfer[3][0] = 5.0;
+    let e = encode(&bad).unwrap_err().to_string();
+    assert!(e.contains("SKYV") && e.contains("patch 3"), "{e}");
 }

@@ -11,6 +11,7 @@ use crate::voxelize::Resolution;
 use radiosity_bakefile::baked::stored_scene_path;
 use radiosity_bakefile::codec::Encoded;
 use radiosity_bakefile::near_field::NearField;
+use radiosity_bakefile::sky::SkyVisibility;
 use radiosity_bakefile::records::{
     BakeInfo, BouncesRecord, OptionsRecord, INFO_RECORD_VERSION, OPTIONS_RECORD_VERSION,
 };
@@ -43,6 +44,9 @@ pub struct Parts<'a> {
     pub surface_map: SurfaceMap,
     pub samples: PatchSamples,
     pub near_field: NearField,
+    /// The sky transfer per patch in matrix order, and the rays per patch
+    /// it came from (empty: none).
+    pub sky: (&'a [[f32; radiosity_core::sh::COEFFICIENTS]], u32),
 }
 
 /// The bake file of `p`.
@@ -98,6 +102,14 @@ pub fn bake_file(p: Parts) -> BakeFile {
         surface_map: p.surface_map,
         samples: p.samples,
         near_field: p.near_field,
+        sky: if p.sky.0.is_empty() {
+            SkyVisibility::none()
+        } else {
+            SkyVisibility {
+                rays: p.sky.1,
+                transfer: p.sky.0.to_vec(),
+            }
+        },
         info_json: serde_json::to_string(&info).expect("info serializes"),
     }
 }

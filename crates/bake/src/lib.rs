@@ -193,6 +193,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> Result<BakeOu
         surface_map,
         samples,
         near_field,
+        sky: (&ff.sky, config.form_factor.rays_per_patch),
     });
     if let Some(out) = &config.output {
         progress(&format!("writing {}", out.display()));

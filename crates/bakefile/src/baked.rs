@@ -72,6 +72,9 @@ pub struct Baked {
     /// The near-field correction, in matrix order (empty for a bake made
     /// without it).
     pub near_field: NearField,
+    /// The patches' sky transfer, in matrix order (empty for a bake made
+    /// without it: a sky then lights nothing).
+    pub sky: crate::sky::SkyVisibility,
     pub options: OptionsRecord,
     pub info: BakeInfo,
     pub scene_hash: SceneHash,
@@ -181,6 +184,7 @@ impl Baked {
             surface_map: bf.surface_map.renumbered(&order, &new_of),
             samples: bf.samples.reordered(&order),
             near_field: bf.near_field.reordered(&order, &new_of),
+            sky: bf.sky.reordered(&order),
             patches,
             matrix,
             order,

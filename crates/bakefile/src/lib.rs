@@ -53,6 +53,7 @@
 //! | `SMAP` | the per-pixel surface map ([`surface`] gives the layout)                  |
 //! | `PSMP` | the patches' sample points ([`surface`])                                  |
 //! | `NEAR` | optional: the near-field correction ([`near_field`] gives the layout)     |
+//! | `SKYV` | optional: the patches' sky transfer ([`sky`] gives the layout)             |
 //! | `INFO` | the bake report record [`records::BakeInfo`], JSON text                   |
 //!
 //! Sections are found through the table, never by position; the writer
@@ -98,6 +99,7 @@ pub mod hash;
 pub mod near_field;
 pub mod records;
 pub mod section_error;
+pub mod sky;
 pub mod surface;
 
 pub use container::{
@@ -109,6 +111,7 @@ pub use section_error::SectionError;
 
 use container::{encode_sections, le_u32, write_atomic};
 use near_field::NearField;
+use sky::SkyVisibility;
 use serde::Serialize;
 use std::path::Path;
 use surface::{PatchSamples, SurfaceMap};
@@ -173,6 +176,9 @@ pub mod tag {
     /// The near-field correction (optional: a file without it loads with
     /// none).
     pub const NEAR_FIELD: [u8; 4] = *b"NEAR";
+    /// The patches' sky transfer (optional: a file without it loads with
+    /// none).
+    pub const SKY: [u8; 4] = *b"SKYV";
     /// Bake report, JSON.
     pub const INFO: [u8; 4] = *b"INFO";
 
@@ -213,6 +219,7 @@ pub fn section_what(t: [u8; 4]) -> &'static str {
         tag::SURFACE_MAP => "surface map",
         tag::SAMPLES => "patch sample points",
         tag::NEAR_FIELD => "near-field correction",
+        tag::SKY => "sky visibility",
         tag::INFO => "bake report",
         _ => "unknown section",
     }
@@ -317,6 +324,9 @@ pub struct BakeFile {
     /// The near-field correction ([`near_field`]), in file order; written
     /// only when not empty.
     pub near_field: NearField,
+    /// The patches' sky transfer ([`sky`]), in file order; written only
+    /// when not empty.
+    pub sky: SkyVisibility,
     /// Free-form bake report, JSON text.
     pub info_json: String,
 }
@@ -461,6 +471,7 @@ pub fn validate(bf: &BakeFile, file: &str) -> Result<(), BakeFileError> {
     bf.near_field
         .check(n)
         .map_err(|d| invalid(file, tag::NEAR_FIELD, d))?;
+    bf.sky.check(n).map_err(|d| invalid(file, tag::SKY, d))?;
     for (v, row) in bf.mesh_map.iter().enumerate() {
         let mut sum = 0.0f64;
         for (s, &(p, w)) in row.iter().enumerate() {
@@ -550,6 +561,7 @@ fn encode_named(bf: &BakeFile, file: &str) -> Result<Vec<u8>, BakeFileError> {
     let smap = bf.surface_map.to_bytes();
     let psmp = bf.samples.to_bytes();
     let near = bf.near_field.to_bytes();
+    let sky = bf.sky.to_bytes();
     let mut sections: Vec<([u8; 4], &[u8])> = vec![
         (tag::OPTIONS, bf.options_json.as_bytes()),
         (tag::SCENE_HASH, &hash),
@@ -573,11 +585,14 @@ fn encode_named(bf: &BakeFile, file: &str) -> Result<Vec<u8>, BakeFileError> {
     if !bf.near_field.is_empty() {
         sections.push((tag::NEAR_FIELD, &near));
     }
+    if !bf.sky.is_empty() {
+        sections.push((tag::SKY, &sky));
+    }
     sections.push((tag::INFO, bf.info_json.as_bytes()));
     debug_assert!(sections
         .iter()
         .map(|s| s.0)
-        .filter(|t| *t != tag::NEAR_FIELD && *t != tag::COLUMN_SCALES)
+        .filter(|t| ![tag::NEAR_FIELD, tag::SKY, tag::COLUMN_SCALES].contains(t))
         .eq(tag::REQUIRED));
     Ok(encode_sections(&sections))
 }
@@ -752,6 +767,10 @@ pub fn parse_named(bytes: &[u8], file: &str) -> Result<BakeFile, BakeFileError> 
                 NearField::from_bytes(s.bytes, n).map_err(|d| invalid(file, tag::NEAR_FIELD, d))?
             }
             None => NearField::none(),
+        },
+        sky: match secs.iter().find(|s| s.tag == tag::SKY) {
+            Some(s) => SkyVisibility::from_bytes(s.bytes, n).map_err(|d| invalid(file, tag::SKY, d))?,
+            None => SkyVisibility::none(),
         },
         mesh_map,
         info_json,

@@ -846,6 +846,8 @@ fn finish(
         n: k,
         f: g,
         kept,
+        // The contour integrals see no sky: a bake by them has none.
+        sky: Vec::new(),
         stats: FormFactorStats::default(),
     };
     stats.max_row_sum = out.row_sums().into_iter().fold(0.0, f64::max);

@@ -315,6 +315,9 @@ pub struct FormFactors {
     pub f: Vec<f32>,
     /// Indices of the input patches kept, increasing.
     pub kept: Vec<usize>,
+    /// Per kept patch, its sky transfer (`radiosity_bakefile::sky`), from
+    /// the rays that left the scene; empty where the method casts none.
+    pub sky: Vec<[f32; radiosity_core::sh::COEFFICIENTS]>,
     pub stats: FormFactorStats,
 }
 

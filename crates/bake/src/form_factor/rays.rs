@@ -40,6 +40,7 @@
 //! stay the contour-integral method's (`--form-factors contour`), which is
 //! exact for planar squares.
 
+use radiosity_core::sh;
 use super::{FormFactorOptions, FormFactorStats, FormFactors, ROW_SUM_TOL};
 use crate::error::BakeError;
 use crate::pieces::{self, PieceGeo, PieceLookup, CUT_INSET};
@@ -95,6 +96,9 @@ struct RowCounts {
     /// geometry"), and rays from its covered part would meet the solid it
     /// is hidden in. The row is over the rays cast.
     covered: u64,
+    /// `Σ Y_lm(d)` over the escaped rays: the sky's transfer times
+    /// `cast / π` (cosine-weighted rays; `radiosity_bakefile::sky`).
+    sky: [f64; sh::COEFFICIENTS],
 }
 
 impl RowCounts {
@@ -190,6 +194,17 @@ pub fn form_factors(
     stats.sinkhorn_iterations = iterations as u64;
     stats.sinkhorn_residual = residual;
     let mut out = finish_symmetric(n, g, &areas, &mut stats)?;
+    // Each kept patch's sky transfer: with cosine-weighted directions
+    // (pdf cos/π), `T_lm ≈ π/N Σ_escaped Y_lm(d)` over the N rays cast.
+    out.sky = out
+        .kept
+        .iter()
+        .map(|&i| {
+            let r = &rows[i];
+            r.sky
+                .map(|t| (std::f64::consts::PI * t / r.cast(rays)) as f32)
+        })
+        .collect();
     stats.row_sum_mean = out
         .row_sums()
         .iter()
@@ -227,8 +242,15 @@ fn emit(
             c.covered += 1;
             continue;
         }
-        match tracer.trace(x, n, cosine_direction(n, r[2], r[3])) {
-            Hit::Escaped => c.escaped += 1,
+        let d = cosine_direction(n, r[2], r[3]);
+        match tracer.trace(x, n, d) {
+            Hit::Escaped => {
+                c.escaped += 1;
+                // The rays that leave the scene are the sky's.
+                for (t, y) in c.sky.iter_mut().zip(sh::basis(d)) {
+                    *t += y;
+                }
+            }
             Hit::Back => c.back += 1,
             Hit::Unowned => c.unowned += 1,
             Hit::Owned { patch, .. } => {
@@ -551,6 +573,7 @@ fn finish_symmetric(
         n: k,
         f,
         kept,
+        sky: Vec::new(),
         stats: FormFactorStats::default(),
     };
     stats.max_row_sum = out.row_sums().into_iter().fold(0.0, f64::max);
