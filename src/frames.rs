@@ -279,6 +279,11 @@ pub(crate) fn draw_headless(
 ) -> anyhow::Result<(radiosity::runtime::render::Image, String)> {
     use radiosity::runtime::render::render;
     use radiosity::runtime::texture::Albedo;
+    // The sky lights the patches (D_sky, bounced into H); a bake made
+    // without sky visibility says so and is drawn without it.
+    if let Err(e) = rt.set_sky(config.sky.clone()) {
+        eprintln!("warning: {e}");
+    }
     // GL: a headless context, or (auto) the CPU when none can be made.
     let context = match backend {
         "gl" => Some(radiosity::gl::context::Headless::new().context(
@@ -303,6 +308,11 @@ pub(crate) fn draw_headless(
         },
         _ => None,
     };
+    if rt.sky().is_some() && context.is_some() {
+        eprintln!(
+            "warning: the GL renderer does not draw the sky yet (issue 43): --backend cpu does"
+        );
+    }
     let out = match &context {
         Some(ctx) => {
             let gl = &ctx.gl;

@@ -11,10 +11,10 @@ use crate::voxelize::Resolution;
 use radiosity_bakefile::baked::stored_scene_path;
 use radiosity_bakefile::codec::Encoded;
 use radiosity_bakefile::near_field::NearField;
-use radiosity_bakefile::sky::SkyVisibility;
 use radiosity_bakefile::records::{
     BakeInfo, BouncesRecord, OptionsRecord, INFO_RECORD_VERSION, OPTIONS_RECORD_VERSION,
 };
+use radiosity_bakefile::sky::SkyVisibility;
 use radiosity_bakefile::surface::{PatchSamples, SurfaceMap};
 use radiosity_bakefile::{BakeFile, PatchRecord, SceneHash};
 use radiosity_core::patch::Patch;

@@ -111,8 +111,8 @@ pub use section_error::SectionError;
 
 use container::{encode_sections, le_u32, write_atomic};
 use near_field::NearField;
-use sky::SkyVisibility;
 use serde::Serialize;
+use sky::SkyVisibility;
 use std::path::Path;
 use surface::{PatchSamples, SurfaceMap};
 
@@ -769,7 +769,9 @@ pub fn parse_named(bytes: &[u8], file: &str) -> Result<BakeFile, BakeFileError> 
             None => NearField::none(),
         },
         sky: match secs.iter().find(|s| s.tag == tag::SKY) {
-            Some(s) => SkyVisibility::from_bytes(s.bytes, n).map_err(|d| invalid(file, tag::SKY, d))?,
+            Some(s) => {
+                SkyVisibility::from_bytes(s.bytes, n).map_err(|d| invalid(file, tag::SKY, d))?
+            }
             None => SkyVisibility::none(),
         },
         mesh_map,

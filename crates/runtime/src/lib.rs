@@ -72,6 +72,7 @@ pub mod gather;
 pub mod near_field;
 pub mod open;
 pub mod render;
+pub mod sky;
 pub mod surface;
 pub mod texture;
 pub mod tonemap;
@@ -205,6 +206,10 @@ pub struct Runtime {
     weights: std::sync::OnceLock<[Vec<f64>; 3]>,
     terms: Vec<Term>,
     emission_term: Option<(BTreeMap<String, f32>, Term)>,
+    /// The sky lighting the frames ([`Runtime::set_sky`]).
+    sky: Option<radiosity_core::sky::Sky>,
+    /// The sky's term, for the sky it was computed for.
+    sky_term: Option<(radiosity_core::sky::Sky, Term)>,
     d: [Vec<f32>; 3],
     b0: [Vec<f32>; 3],
     h: [Vec<f32>; 3],
@@ -242,6 +247,8 @@ impl Runtime {
             options,
             terms: Vec::new(),
             emission_term: None,
+            sky: None,
+            sky_term: None,
             d: std::array::from_fn(|_| vec![0.0; n]),
             b0: std::array::from_fn(|_| vec![0.0; n]),
             h: std::array::from_fn(|_| vec![0.0; n]),
@@ -388,6 +395,33 @@ impl Runtime {
         (h, g, active)
     }
 
+    /// The sky of the next frames (`None`: black). A bake without sky
+    /// visibility cannot be lit by one: the error says so, and the sky
+    /// stays as it was.
+    pub fn set_sky(
+        &mut self,
+        sky: Option<radiosity_core::sky::Sky>,
+    ) -> Result<(), sky::NoSkyVisibility> {
+        if sky.is_some() && self.baked.sky.is_empty() {
+            return Err(sky::NoSkyVisibility {
+                file: self.baked.file.clone(),
+            });
+        }
+        self.sky = sky;
+        Ok(())
+    }
+
+    /// The sky lighting the frames.
+    pub fn sky(&self) -> Option<&radiosity_core::sky::Sky> {
+        self.sky.as_ref()
+    }
+
+    /// `D_sky` on the patches after the last frame (matrix order), when a
+    /// sky lit it.
+    pub fn d_sky(&self) -> Option<&[Vec<f32>; 3]> {
+        self.sky_term.as_ref().map(|(_, t)| &t.d)
+    }
+
     /// Lights the scene with `lights` and the emission `scales` (material
     /// name → scale, unlisted materials 1): `D`, `B0` and `H` (module doc
     /// for what is reused).
@@ -437,6 +471,43 @@ impl Runtime {
             ));
         }
 
+        // The sky: `D_sky` from the baked transfer, `ρ ∘ D_sky` gathered
+        // like a light's `B0`; no term without a sky.
+        let sky_ok = cache
+            && match (&self.sky, &self.sky_term) {
+                (None, None) => true,
+                (Some(s), Some((t, _))) => s == t,
+                _ => false,
+            };
+        if sky_ok {
+            stats.terms_reused += usize::from(self.sky.is_some());
+        } else {
+            changed = true;
+            self.sky_term = match self.sky.clone() {
+                None => None,
+                Some(s) => {
+                    let t0 = Instant::now();
+                    let d = sky::irradiance(&self.baked, &s).expect("checked by set_sky");
+                    let b0 = direct::reflected(&self.baked, &d);
+                    stats.seconds_direct += t0.elapsed().as_secs_f64();
+                    let t0 = Instant::now();
+                    let (h, g, active) = self.product(&b0);
+                    stats.seconds_gather += t0.elapsed().as_secs_f64();
+                    add_gather(&mut stats, &g, active, groups);
+                    stats.terms_computed += 1;
+                    Some((
+                        s,
+                        Term {
+                            lights: Vec::new(),
+                            d,
+                            b0,
+                            h,
+                        },
+                    ))
+                }
+            };
+        }
+
         // Lights.
         self.terms.truncate(lights.len().div_ceil(per_term));
         for (i, group) in lights.chunks(per_term).enumerate() {
@@ -477,13 +548,14 @@ impl Runtime {
             stats.seconds_total = start.elapsed().as_secs_f64();
             return stats;
         }
-        // Sum the terms in a fixed order: emission, then lights in order.
+        // Sum the terms in a fixed order: emission, the sky, then lights in
+        // order.
         let (_, e) = self.emission_term.as_ref().expect("set above");
         for c in 0..3 {
             self.d[c].copy_from_slice(&e.d[c]);
             self.b0[c].copy_from_slice(&e.b0[c]);
             self.h[c].copy_from_slice(&e.h[c]);
-            for t in &self.terms {
+            for t in self.sky_term.iter().map(|(_, t)| t).chain(&self.terms) {
                 for j in 0..n {
                     self.d[c][j] += t.d[c][j];
                     self.b0[c][j] += t.b0[c][j];

@@ -174,6 +174,13 @@ pub fn render(
     let rays = Rays::new(camera, width, height);
     let far = 4.0 * rt.direct.far();
     let h = rt.h();
+    // The sky: its direct light per pixel is the patches' `D_sky` through
+    // the surface map (the weights `H` takes), and it is seen where a
+    // camera ray leaves the scene.
+    let d_sky = rt.d_sky();
+    let sky = rt
+        .sky()
+        .filter(|_| matches!(view, View::Final | View::Direct));
     let map = &rt.baked.surface_map;
     let rows: Vec<(Vec<[f32; 3]>, Vec<bool>, RenderStats)> = (0..height)
         .into_par_iter()
@@ -202,6 +209,10 @@ pub fn render(
                 }
                 let (o, d) = rays8[lane];
                 let Some((k, t)) = hits[lane] else {
+                    if let Some(sky) = sky {
+                        let l = sky.radiance(normalize(d));
+                        row[px] = l.map(|v| v as f32);
+                    }
                     continue;
                 };
                 s.hits += 1;
@@ -232,6 +243,12 @@ pub fn render(
                     Lookup::Unmapped => s.unmapped += 1,
                 }
                 let hx = surface::apply(&w, h);
+                let sx = match d_sky {
+                    Some(ds) if matches!(view, View::Final | View::Direct) => {
+                        surface::apply(&w, ds)
+                    }
+                    _ => [0.0; 3],
+                };
                 let dx = if matches!(view, View::Final | View::Direct) {
                     rt.direct.at_point_cached(x, ng, lights, &mut shadows)
                 } else {
@@ -245,8 +262,8 @@ pub fn render(
                             .filter(|_| how != Lookup::Unmapped)
                             .map(|&(p, wt)| wt as f64 * patch_colour(p)[c] as f64)
                             .sum(),
-                        View::Final => r * (dx[c] + hx[c] as f64) + le[c],
-                        View::Direct => r * dx[c] + le[c],
+                        View::Final => r * (dx[c] + sx[c] as f64 + hx[c] as f64) + le[c],
+                        View::Direct => r * (dx[c] + sx[c] as f64) + le[c],
                         View::Indirect => r * hx[c] as f64,
                         View::Patches => {
                             if how == Lookup::Unmapped {

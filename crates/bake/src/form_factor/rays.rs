@@ -40,7 +40,6 @@
 //! stay the contour-integral method's (`--form-factors contour`), which is
 //! exact for planar squares.
 
-use radiosity_core::sh;
 use super::{FormFactorOptions, FormFactorStats, FormFactors, ROW_SUM_TOL};
 use crate::error::BakeError;
 use crate::pieces::{self, PieceGeo, PieceLookup, CUT_INSET};
@@ -49,6 +48,7 @@ use radiosity_core::bvh::Bvh;
 use radiosity_core::bvh4::Bvh4;
 use radiosity_core::math::{add, dot, norm, normalize, scale, sub, tangent_basis, SplitMix64};
 use radiosity_core::scene::Scene;
+use radiosity_core::sh;
 use rayon::prelude::*;
 use std::time::Instant;
 
