@@ -22,7 +22,14 @@
 //!   time copies from Mitsuba's `spot`);
 //! - camera: `perspective` with the vertical field of view, a box pixel
 //!   filter (each pixel the mean over its area, which the run time's
-//!   supersampled reference images match).
+//!   supersampled reference images match);
+//! - sky ([`crate::core::sky`]): a uniform sky is a `constant` emitter, a
+//!   gradient an `envmap` of `sky.pfm`, a latitude-longitude map whose row
+//!   `r` of `H` is the elevation `θ = π (r + ½)/H` from `+y` (Mitsuba's
+//!   envmap: `v = acos(ω_y)/π`, so the top row is the zenith); the
+//!   gradient does not depend on the azimuth, so neither does the map.
+//!   `lights_only.xml` hides directly seen emitters, so that the sky
+//!   behind the scene counts once in the direct view (in `Le`).
 //!
 //! Two scene files are written: `scene.xml` (everything) and
 //! `lights_only.xml` (no area emitters): the run time's direct view
@@ -33,6 +40,7 @@
 
 use crate::core::scene::{Scene, Wrap, ALBEDO_MAX};
 use crate::core::scene_config::{Light, SceneConfig};
+use crate::core::sky::Sky;
 use crate::runtime::texture::Texture;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -88,7 +96,11 @@ pub struct ExportSummary {
 /// materials it meshes): the two scene files, a mesh and a texture per
 /// material.
 pub fn files(scene: &Scene, dir: &Path) -> Vec<std::path::PathBuf> {
-    let mut out = vec![dir.join("scene.xml"), dir.join("lights_only.xml")];
+    let mut out = vec![
+        dir.join("scene.xml"),
+        dir.join("lights_only.xml"),
+        dir.join("sky.pfm"),
+    ];
     for m in 0..scene.materials.len() {
         out.push(dir.join(format!("meshes/m{m}.obj")));
         out.push(dir.join(format!("textures/m{m}.pfm")));
@@ -193,15 +205,21 @@ pub fn export(
         let _ = writeln!(shapes, "{open}\n  </shape>");
         let _ = writeln!(emitters, "{open}{emitter}\n  </shape>");
     }
-    let lights = lights_xml(&config.lights);
+    let lights = lights_xml(&config.lights) + &sky_xml(config.sky.as_ref(), dir)?;
     let sensor = sensor_xml(scene, config, w, h);
     for (name, body) in [("scene.xml", &emitters), ("lights_only.xml", &shapes)] {
+        // The sky seen directly counts in `Le` (scene.xml) only.
+        let hide = if name == "lights_only.xml" && config.sky.is_some() {
+            "<boolean name=\"hide_emitters\" value=\"true\"/>"
+        } else {
+            ""
+        };
         let xml = format!(
             "<?xml version=\"1.0\"?>\n<!-- Written by `radiosity export-mitsuba` from {}. -->\n\
              <scene version=\"3.0.0\">\n  <default name=\"max_depth\" value=\"-1\"/>\n  \
              <default name=\"spp\" value=\"64\"/>\n  <default name=\"seed\" value=\"0\"/>\n  \
              <integrator type=\"path\"><integer name=\"max_depth\" value=\"$max_depth\"/>\
-             </integrator>\n{sensor}{lights}{body}</scene>\n",
+             {hide}</integrator>\n{sensor}{lights}{body}</scene>\n",
             scene.source.display()
         );
         let path = dir.join(name);
@@ -273,6 +291,41 @@ fn lookat(origin: [f32; 3], target: [f32; 3], up: [f32; 3]) -> String {
         f(target),
         f(up)
     )
+}
+
+/// Rows of the gradient sky's latitude-longitude map (columns: 8, the
+/// map does not depend on the azimuth). 512 rows: bilinear lookup between
+/// rows 0.35° apart follows the linear gradient to 1e-5 of its range.
+const SKY_ROWS: usize = 512;
+
+/// The sky's emitter (module doc), writing `sky.pfm` into `dir` for a
+/// gradient.
+fn sky_xml(sky: Option<&Sky>, dir: &Path) -> Result<String, ExportError> {
+    Ok(match sky {
+        None => String::new(),
+        Some(Sky::Uniform { radiance }) => format!(
+            "  <emitter type=\"constant\"><rgb name=\"radiance\" value=\"{}\"/></emitter>\n",
+            rgb(*radiance)
+        ),
+        Some(sky) => {
+            let cols = 8;
+            let mut texels = Vec::with_capacity(cols * SKY_ROWS);
+            for r in 0..SKY_ROWS {
+                let theta = std::f64::consts::PI * (r as f64 + 0.5) / SKY_ROWS as f64;
+                let l = sky.radiance([theta.sin(), theta.cos(), 0.0]);
+                texels.extend(std::iter::repeat_n(l.map(|v| v as f32), cols));
+            }
+            let path = dir.join("sky.pfm");
+            crate::runtime::tonemap::write_pfm(&path, cols, SKY_ROWS, &texels).map_err(
+                |source| ExportError::Io {
+                    path: path.clone(),
+                    source,
+                },
+            )?;
+            "  <emitter type=\"envmap\"><string name=\"filename\" value=\"sky.pfm\"/></emitter>\n"
+                .to_string()
+        }
+    })
 }
 
 /// The lights, each translated as the module doc says.
