@@ -99,3 +99,23 @@ pub enum GridError {
         max: u32,
     },
 }
+
+/// A field of the camera-and-lights file (or a sky) whose value is out of
+/// range, named by its path in the file (e.g. `lights[1].direction`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct InvalidField {
+    /// The field's path, e.g. `camera.fov_y_deg`.
+    pub field: String,
+    /// The offending value as written in the file.
+    pub value: String,
+    /// What is wrong with it.
+    pub message: String,
+}
+
+impl std::fmt::Display for InvalidField {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} = {}: {}", self.field, self.value, self.message)
+    }
+}
+
+impl std::error::Error for InvalidField {}

@@ -17,7 +17,6 @@
 use crate::math::{cross, dot, normalize, sub};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::fmt;
 use std::path::{Path, PathBuf};
 
 /// A scene's camera and dynamic lights.
@@ -122,25 +121,7 @@ pub enum ConfigError {
     },
 }
 
-/// A field whose value is out of range, named by its path in the file
-/// (e.g. `lights[1].direction`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct InvalidField {
-    /// The field's path, e.g. `camera.fov_y_deg`.
-    pub field: String,
-    /// The offending value as written in the file.
-    pub value: String,
-    /// What is wrong with it.
-    pub message: String,
-}
-
-impl fmt::Display for InvalidField {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{} = {}: {}", self.field, self.value, self.message)
-    }
-}
-
-impl std::error::Error for InvalidField {}
+pub use crate::error::InvalidField;
 
 fn show3(v: [f32; 3]) -> String {
     format!("[{}, {}, {}]", v[0], v[1], v[2])

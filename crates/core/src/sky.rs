@@ -12,7 +12,7 @@
 //! The run time meets a sky through its band-2 spherical harmonics
 //! ([`crate::sh`]) and each patch's baked transfer: `D_sky = Σ L_lm T_lm`.
 
-use crate::scene_config::InvalidField;
+use crate::error::InvalidField;
 use crate::sh;
 use serde::{Deserialize, Serialize};
 
