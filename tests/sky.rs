@@ -358,3 +358,54 @@ fn the_sky_is_seen_where_camera_rays_leave_the_scene() {
     let (img, _) = render(&rt, &config, View::Indirect, 32, 24, &albedo);
     assert!(img.radiance.iter().all(|&p| p == [0.0; 3]));
 }
+
+/// `radiosity render` takes the sky from the camera-and-lights file: from
+/// inside the open box looking up through the opening, the linear image
+/// (`--hdr`) is the sky's radiance in every pixel. A bake without sky
+/// visibility renders with a warning that names it, and a black sky.
+#[test]
+fn render_takes_the_sky_from_the_camera_and_lights_file() {
+    use radiosity::mitsuba::reference::read_pfm;
+    use std::process::Command;
+    let run = |rad: &std::path::Path, json: &std::path::Path, tag: &str| {
+        let dir = common::temp_dir(tag);
+        let (png, pfm) = (dir.join("out.png"), dir.join("out.pfm"));
+        let o = Command::new(env!("CARGO_BIN_EXE_radiosity"))
+            .args(["render", rad.to_str().unwrap(), "--backend", "cpu"])
+            .args(["--camera-lights", json.to_str().unwrap()])
+            .args(["--width", "32", "--height", "24", "--view", "direct"])
+            .args(["-o", png.to_str().unwrap(), "--hdr", pfm.to_str().unwrap()])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        (read_pfm(&pfm).unwrap(), err)
+    };
+    let json_text = r#"{
+        "camera": {"position": [0.5, 0.5, 0.5], "target": [0.5, 2.0, 0.5],
+                   "up": [0.0, 0.0, 1.0], "fov_y_deg": 60.0},
+        "lights": [], "units": "m",
+        "sky": {"type": "uniform", "radiance": [0.25, 0.5, 1.0]}
+    }"#;
+    let (_, obj) = bake("sky-cli", &unit_box(true), FormFactorMethod::Rays);
+    let json = obj.with_file_name("sky.json");
+    std::fs::write(&json, json_text).unwrap();
+    let (img, err) = run(&obj.with_file_name("scene.rad"), &json, "sky-cli-out");
+    assert!(!err.contains("warning"), "{err}");
+    assert_eq!(img.pixels.len(), 32 * 24);
+    assert!(
+        img.pixels.iter().all(|&p| p == [0.25, 0.5, 1.0]),
+        "{:?}",
+        img.pixels[0]
+    );
+    // Without sky visibility: said, and drawn without the sky.
+    let (_, obj) = bake("sky-cli-old", &unit_box(true), FormFactorMethod::Contour);
+    let json = obj.with_file_name("sky.json");
+    std::fs::write(&json, json_text).unwrap();
+    let (img, err) = run(&obj.with_file_name("scene.rad"), &json, "sky-cli-old-out");
+    assert!(
+        err.contains("warning") && err.contains("no sky visibility") && err.contains("scene.rad"),
+        "{err}"
+    );
+    assert!(img.pixels.iter().all(|&p| p == [0.0; 3]));
+}
