@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{quad, write_quads, Quad};
+use common::{box_inside as room, quad, write_quads, Quad};
 use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::{self, BakeConfig, CodecChoice, ComputeChoice};
 use radiosity::bakefile::codec::CodecKind;
@@ -39,18 +39,6 @@ fn bake_to_runtime_reporting(obj: &Path, resolution: Resolution) -> (Runtime, ba
     let (baked, output) = common::bake_to(config(obj, resolution), &out);
     let rt = Runtime::new(baked, scene::load(obj).unwrap(), RuntimeOptions::default());
     (rt, output.report)
-}
-
-/// The inward faces of the box `[lo, hi]`, each one quad, albedo `a`
-/// (a block's faces turned round), in the order −x, +x, −y, +y, −z, +z.
-fn room(lo: [f64; 3], hi: [f64; 3], a: [f64; 3]) -> Vec<Quad> {
-    common::block(lo, hi, a)
-        .into_iter()
-        .map(|mut q| {
-            q.corners.reverse();
-            q
-        })
-        .collect()
 }
 
 /// Lights `rt` with `light` and checks the dark room (patch centres where

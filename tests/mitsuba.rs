@@ -165,15 +165,9 @@ fn direct_view_matches_mitsuba_on_the_cornell_box() {
 fn direct_view_under_a_sky_matches_mitsuba() {
     use radiosity::core::sky::Sky;
     let dir = common::temp_dir("mitsuba-sky");
-    let quads: Vec<common::Quad> = common::block([0.0; 3], [1.0; 3], [0.7, 0.6, 0.5])
-        .into_iter()
-        .enumerate()
-        .filter(|&(k, _)| k != 3)
-        .map(|(_, mut q)| {
-            q.corners.reverse();
-            q
-        })
-        .collect();
+    // The box's inside without its top (the +y face).
+    let mut quads = common::box_inside([0.0; 3], [1.0; 3], [0.7, 0.6, 0.5]);
+    quads.remove(3);
     let src = common::write_quads("mitsuba-sky-scene", &quads);
     let obj = dir.join("box.obj");
     std::fs::copy(&src, &obj).unwrap();

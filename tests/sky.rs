@@ -23,15 +23,11 @@ use std::path::PathBuf;
 /// The inward faces of the unit box `[0, 1]³`, its top (+y) left open when
 /// `open`.
 fn unit_box(open: bool) -> Vec<Quad> {
-    common::block([0.0; 3], [1.0; 3], [0.6, 0.5, 0.4])
-        .into_iter()
-        .enumerate()
-        .filter(|&(k, _)| !(open && k == 3))
-        .map(|(_, mut q)| {
-            q.corners.reverse();
-            q
-        })
-        .collect()
+    let mut quads = common::box_inside([0.0; 3], [1.0; 3], [0.6, 0.5, 0.4]);
+    if open {
+        quads.remove(3);
+    }
+    quads
 }
 
 /// Bakes `quads` at voxels of 1/8 (the box's sides divide it); the bake

@@ -171,6 +171,19 @@ pub fn block(lo: [f64; 3], hi: [f64; 3], a: [f64; 3]) -> Vec<Quad> {
     q
 }
 
+/// The inward faces of the box `[lo, hi]`, each one quad, albedo `a` (a
+/// block's faces turned round), in the order −x, +x, −y, +y, −z, +z: a
+/// closed room, or with a face left out, a room open on that side.
+pub fn box_inside(lo: [f64; 3], hi: [f64; 3], a: [f64; 3]) -> Vec<Quad> {
+    block(lo, hi, a)
+        .into_iter()
+        .map(|mut q| {
+            q.corners.reverse();
+            q
+        })
+        .collect()
+}
+
 /// A 3 × 2 × 2 m room with a single-sided partition (x = 1.5, 1.2 m high,
 /// facing −x) and a single-sided seat (a quad 0.45 m above the floor,
 /// facing up), both seen from both sides and without back faces. With

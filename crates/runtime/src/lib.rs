@@ -472,7 +472,9 @@ impl Runtime {
         }
 
         // The sky: `D_sky` from the baked transfer, `ρ ∘ D_sky` gathered
-        // like a light's `B0`; no term without a sky.
+        // like a light's `B0`; no term without a sky. No near-field
+        // correction: the transfer is per patch, with no per-point values
+        // for the correction to redistribute.
         let sky_ok = cache
             && match (&self.sky, &self.sky_term) {
                 (None, None) => true,
