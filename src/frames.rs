@@ -331,7 +331,7 @@ pub(crate) fn draw_headless(
             )
             .context("preparing the GL renderer")?;
             let start = std::time::Instant::now();
-            let fs = r.frame(gl, &config.lights, &config.emission)?;
+            let fs = r.frame(gl, &config.frame_lights(), &config.emission)?;
             let img = r.render(gl, &config.camera, view, (width, height), &config.emission)?;
             let wall = start.elapsed().as_secs_f64();
             let times = r.pass_times(gl, true);
@@ -359,7 +359,7 @@ pub(crate) fn draw_headless(
         }
         None => {
             let albedo = Albedo::new(&rt.scene);
-            let fs = rt.frame(&config.lights, &config.emission);
+            let fs = rt.frame(&config.frame_lights(), &config.emission);
             let (img, rs) = render(rt, config, view, width, height, &albedo);
             let culled = if rt.options.cull > 0.0 {
                 format!(

@@ -23,13 +23,17 @@
 //! - camera: `perspective` with the vertical field of view, a box pixel
 //!   filter (each pixel the mean over its area, which the run time's
 //!   supersampled reference images match);
-//! - sky ([`crate::core::sky`]): a uniform sky is a `constant` emitter, a
-//!   gradient an `envmap` of `sky.pfm`, a latitude-longitude map whose row
-//!   `r` of `H` is the elevation `θ = π (r + ½)/H` from `+y` (Mitsuba's
-//!   envmap: `v = acos(ω_y)/π`, so the top row is the zenith); the
-//!   gradient does not depend on the azimuth, so neither does the map.
-//!   `lights_only.xml` hides directly seen emitters, so that the sky
-//!   behind the scene counts once in the direct view (in `Le`).
+//! - sky ([`crate::core::sky`]): a uniform sky is a `constant` emitter,
+//!   any other an `envmap` of `sky.pfm`, our sky's radiance sampled at the
+//!   texel centres of Mitsuba's latitude-longitude map (`u = atan2(x, −z)/2π`,
+//!   `v = acos(y)/π`, the top row the zenith: the convention
+//!   [`crate::core::sky::envmap`] reads maps in), with the map's rotation
+//!   and intensity applied; a sun and sky's sun is a `directional`
+//!   emitter like the file's own lights. Mitsuba's own `sunsky` is not
+//!   used: it is Hosek–Wilkie's sky, and what is compared is the transport
+//!   under one sky, not two sky models. `lights_only.xml` hides directly
+//!   seen emitters, so that the sky behind the scene counts once in the
+//!   direct view (in `Le`).
 //!
 //! Two scene files are written: `scene.xml` (everything) and
 //! `lights_only.xml` (no area emitters): the run time's direct view
@@ -40,8 +44,9 @@
 
 use crate::core::scene::{Scene, Wrap, ALBEDO_MAX};
 use crate::core::scene_config::{Light, SceneConfig};
-use crate::core::sky::Sky;
+use crate::core::sky::{envmap, Sky};
 use crate::runtime::texture::Texture;
+use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -133,7 +138,7 @@ pub fn export(
         std::fs::create_dir_all(&d).map_err(io(&d))?;
     }
     let mut summary = ExportSummary {
-        lights: config.lights.len(),
+        lights: config.frame_lights().len(),
         ..Default::default()
     };
     let mut shapes = String::new();
@@ -205,7 +210,7 @@ pub fn export(
         let _ = writeln!(shapes, "{open}\n  </shape>");
         let _ = writeln!(emitters, "{open}{emitter}\n  </shape>");
     }
-    let lights = lights_xml(&config.lights) + &sky_xml(config.sky.as_ref(), dir)?;
+    let lights = lights_xml(&config.frame_lights()) + &sky_xml(config.sky.as_ref(), dir)?;
     let sensor = sensor_xml(scene, config, w, h);
     for (name, body) in [("scene.xml", &emitters), ("lights_only.xml", &shapes)] {
         // The sky seen directly counts in `Le` (scene.xml) only.
@@ -293,13 +298,25 @@ fn lookat(origin: [f32; 3], target: [f32; 3], up: [f32; 3]) -> String {
     )
 }
 
-/// Rows of the gradient sky's latitude-longitude map (columns: 8, the
-/// map does not depend on the azimuth). 512 rows: bilinear lookup between
-/// rows 0.35° apart follows the linear gradient to 1e-5 of its range.
-const SKY_ROWS: usize = 512;
+/// The size of the latitude-longitude map a sky is written as: a
+/// gradient does not depend on the azimuth (8 columns; 512 rows, 0.35°
+/// apart, follow its linear profile to 1e-5 of its range under bilinear
+/// lookup); a sun and sky needs the circumsolar brightening (1024 × 512,
+/// 0.35° texels); a map keeps its own size.
+fn sky_map_size(sky: &Sky) -> (usize, usize) {
+    match sky {
+        Sky::Gradient { .. } | Sky::Uniform { .. } => (8, 512),
+        Sky::Sunsky { .. } => (1024, 512),
+        Sky::Envmap { map, .. } => map.as_ref().map_or((8, 4), |m| (m.0.width, m.0.height)),
+    }
+}
 
-/// The sky's emitter (module doc), writing `sky.pfm` into `dir` for a
-/// gradient.
+/// The sky's emitter (module doc), writing `sky.pfm` into `dir` for any
+/// but a uniform sky: its radiance at each texel's centre in Mitsuba's
+/// latitude-longitude convention ([`crate::core::sky::envmap`]), the
+/// map's rotation and intensity applied. A sun and sky's sun is a
+/// `directional` emitter among the lights
+/// ([`crate::core::scene_config::SceneConfig::frame_lights`]).
 fn sky_xml(sky: Option<&Sky>, dir: &Path) -> Result<String, ExportError> {
     Ok(match sky {
         None => String::new(),
@@ -308,20 +325,24 @@ fn sky_xml(sky: Option<&Sky>, dir: &Path) -> Result<String, ExportError> {
             rgb(*radiance)
         ),
         Some(sky) => {
-            let cols = 8;
-            let mut texels = Vec::with_capacity(cols * SKY_ROWS);
-            for r in 0..SKY_ROWS {
-                let theta = std::f64::consts::PI * (r as f64 + 0.5) / SKY_ROWS as f64;
-                let l = sky.radiance([theta.sin(), theta.cos(), 0.0]);
-                texels.extend(std::iter::repeat_n(l.map(|v| v as f32), cols));
-            }
+            let (cols, rows) = sky_map_size(sky);
+            let texels: Vec<[f32; 3]> = (0..rows * cols)
+                .into_par_iter()
+                .map(|k| {
+                    let (u, v) = (
+                        ((k % cols) as f64 + 0.5) / cols as f64,
+                        ((k / cols) as f64 + 0.5) / rows as f64,
+                    );
+                    sky.radiance(envmap::direction(u, v)).map(|v| v as f32)
+                })
+                .collect();
             let path = dir.join("sky.pfm");
-            crate::runtime::tonemap::write_pfm(&path, cols, SKY_ROWS, &texels).map_err(
-                |source| ExportError::Io {
+            crate::runtime::tonemap::write_pfm(&path, cols, rows, &texels).map_err(|source| {
+                ExportError::Io {
                     path: path.clone(),
                     source,
-                },
-            )?;
+                }
+            })?;
             "  <emitter type=\"envmap\"><string name=\"filename\" value=\"sky.pfm\"/></emitter>\n"
                 .to_string()
         }

@@ -52,77 +52,22 @@ pub struct Rgb {
     pub pixels: Vec<[f32; 3]>,
 }
 
-/// Reads a colour PFM (`PF`, either byte order, bottom row first) into an
-/// image with the top row first. Non-finite pixels are an error: a
-/// reference must be finite everywhere.
+/// Reads a PFM ([`crate::core::pfm`]) into an image with the top row
+/// first. Non-finite pixels are an error: a reference must be finite
+/// everywhere.
 pub fn read_pfm(path: &Path) -> Result<Rgb, ReferenceError> {
     let bytes = std::fs::read(path).map_err(|source| ReferenceError::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    let bad = |what: &str| ReferenceError::Pfm {
+    let p = crate::core::pfm::decode(&bytes, usize::MAX).map_err(|what| ReferenceError::Pfm {
         path: path.to_path_buf(),
-        what: what.to_string(),
-    };
-    // Three whitespace-separated header fields after the magic: width,
-    // height, scale (negative: little-endian), then one whitespace byte.
-    let mut fields = Vec::new();
-    let mut i = 0;
-    while fields.len() < 4 {
-        while i < bytes.len() && bytes[i].is_ascii_whitespace() {
-            i += 1;
-        }
-        let start = i;
-        while i < bytes.len() && !bytes[i].is_ascii_whitespace() {
-            i += 1;
-        }
-        if start == i {
-            return Err(bad("truncated header"));
-        }
-        fields.push(String::from_utf8_lossy(&bytes[start..i]).into_owned());
-    }
-    i += 1;
-    if fields[0] != "PF" {
-        return Err(bad(&format!("magic {:?}", fields[0])));
-    }
-    let parse = |s: &str| {
-        s.parse::<usize>()
-            .ok()
-            .filter(|&v| (1..=65536).contains(&v))
-    };
-    let (Some(w), Some(h)) = (parse(&fields[1]), parse(&fields[2])) else {
-        return Err(bad(&format!("size {} x {}", fields[1], fields[2])));
-    };
-    let scale: f32 = fields[3]
-        .parse()
-        .map_err(|_| bad(&format!("scale {:?}", fields[3])))?;
-    let little = scale < 0.0;
-    let need = w * h * 12;
-    let data = bytes.get(i..i + need).ok_or_else(|| {
-        bad(&format!(
-            "{} bytes of pixels, {w} x {h} needs {need}",
-            bytes.len().saturating_sub(i)
-        ))
+        what,
     })?;
-    let mut pixels = vec![[0.0f32; 3]; w * h];
-    for (k, chunk) in data.chunks_exact(4).enumerate() {
-        let b = [chunk[0], chunk[1], chunk[2], chunk[3]];
-        let v = if little {
-            f32::from_le_bytes(b)
-        } else {
-            f32::from_be_bytes(b)
-        };
-        if !v.is_finite() {
-            return Err(bad("a non-finite pixel"));
-        }
-        let (p, c) = (k / 3, k % 3);
-        let (x, y_bottom) = (p % w, p / w);
-        pixels[(h - 1 - y_bottom) * w + x][c] = v;
-    }
     Ok(Rgb {
-        width: w,
-        height: h,
-        pixels,
+        width: p.width,
+        height: p.height,
+        pixels: p.texels,
     })
 }
 

@@ -16,6 +16,7 @@ pub mod math;
 pub mod npy;
 pub mod patch;
 pub mod permutation;
+pub mod pfm;
 pub mod polygon;
 pub mod scene;
 pub mod scene_config;

@@ -119,6 +119,13 @@ pub enum ConfigError {
         path: PathBuf,
         invalid: InvalidField,
     },
+    /// The sky's environment map could not be read.
+    #[error("{path}: sky.file: {source}")]
+    EnvMap {
+        path: PathBuf,
+        #[source]
+        source: crate::sky::envmap::EnvMapError,
+    },
 }
 
 pub use crate::error::InvalidField;
@@ -337,7 +344,23 @@ impl SceneConfig {
             path: path.to_path_buf(),
             invalid,
         })?;
+        let mut config = config;
+        if let Some(sky) = &mut config.sky {
+            let base = path.parent().unwrap_or(Path::new(""));
+            sky.load_map(base).map_err(|source| ConfigError::EnvMap {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        }
         Ok(config)
+    }
+
+    /// The lights of a frame: the file's lights, then the sky's sun when
+    /// it has one ([`crate::sky::Sky::sun`]).
+    pub fn frame_lights(&self) -> Vec<Light> {
+        let mut lights = self.lights.clone();
+        lights.extend(self.sky.as_ref().and_then(|s| s.sun()));
+        lights
     }
 
     /// The configuration as pretty-printed JSON with a final newline. The

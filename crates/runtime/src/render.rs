@@ -167,7 +167,7 @@ pub fn render(
     albedo: &Albedo,
 ) -> (Image, RenderStats) {
     let (camera, scales) = (&config.camera, &config.emission);
-    let lights = &radiosity_core::light::Prepared::all(&config.lights)[..];
+    let lights = &radiosity_core::light::Prepared::all(&config.frame_lights())[..];
     let start = Instant::now();
     let scene = &rt.scene;
     let bvh = rt.direct.bvh();
