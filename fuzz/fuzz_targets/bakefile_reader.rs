@@ -75,12 +75,12 @@ fn base() -> &'static [u8] {
                 .collect(),
             permutation: vec![1, 2, 0],
             near_field: Default::default(),
-            // A sky transfer, so that the optional SKYV section's reader is
+            // Sky visibility, so that the optional SKYV section's reader is
             // reached too.
-            sky: radiosity::bakefile::sky::SkyVisibility {
-                rays: 64,
-                transfer: vec![[0.5, 0.1, 0.2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]; 3],
-            },
+            sky: radiosity::bakefile::sky::SkyVisibility::from_lists(
+                64,
+                &[vec![(3, 0.5), (40, 0.25)], vec![], vec![(255, 0.1)]],
+            ),
             // A real encoding (BC1 + log + an RGB9E5 sparse part), so that the
             // codec sections' own validation is reached too.
             codec: {

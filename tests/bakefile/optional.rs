@@ -204,22 +204,19 @@ fn column_scales_round_trip_and_are_checked() {
     assert!(encode(&bad).is_err());
 }
 
-/// The sample file with a sky transfer: patch 2 open to the whole upper
-/// hemisphere (band 0 `π Y_00`), the others partly.
+/// The sample file with sky visibility: patch 2 open to the whole upper
+/// hemisphere (π over four cells), the others partly, patch 0 not at all.
 fn with_sky() -> BakeFile {
-    let open = std::f32::consts::PI * 0.282_094_8;
+    let q = std::f32::consts::PI / 4.0;
+    let lists: Vec<Vec<(u8, f32)>> = (0..5)
+        .map(|i| match i {
+            0 => vec![],
+            2 => vec![(119, q), (120, q), (135, q), (136, q)],
+            _ => vec![(10 * i as u8, q * i as f32 / 8.0), (200, 0.01)],
+        })
+        .collect();
     BakeFile {
-        sky: radiosity::bakefile::sky::SkyVisibility {
-            rays: 256,
-            transfer: (0..5)
-                .map(|i| {
-                    let mut t = [0.0f32; 9];
-                    t[0] = if i == 2 { open } else { open * i as f32 / 8.0 };
-                    t[2] = 0.3 * t[0];
-                    t
-                })
-                .collect(),
-        },
+        sky: radiosity::bakefile::sky::SkyVisibility::from_lists(256, &lists),
         ..sample()
     }
 }
@@ -233,9 +230,10 @@ fn sky_round_trips_and_is_optional() {
     let plain = encode(&sample()).unwrap();
     assert!(!plain.windows(4).any(|w| w == b"SKYV"));
     assert!(parse(&plain).unwrap().sky.is_empty());
-    // A coefficient out of range is refused naming the section and patch.
+    // A value out of range is refused naming the section and patch.
     let mut bad = with_sky();
-    bad.sky.transfer[3][0] = 5.0;
+    let k = bad.sky.starts[3] as usize;
+    bad.sky.values[k] = 5.0;
     let e = encode(&bad).unwrap_err().to_string();
     assert!(e.contains("SKYV") && e.contains("patch 3"), "{e}");
 }

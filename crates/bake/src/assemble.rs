@@ -44,9 +44,9 @@ pub struct Parts<'a> {
     pub surface_map: SurfaceMap,
     pub samples: PatchSamples,
     pub near_field: NearField,
-    /// The sky transfer per patch in matrix order, and the rays per patch
-    /// it came from (empty: none).
-    pub sky: (&'a [[f32; radiosity_core::sh::COEFFICIENTS]], u32),
+    /// The sky visibility per patch in matrix order, and the rays per
+    /// patch it came from (empty: none).
+    pub sky: (&'a [Vec<(u8, f32)>], u32),
 }
 
 /// The bake file of `p`.
@@ -105,10 +105,7 @@ pub fn bake_file(p: Parts) -> BakeFile {
         sky: if p.sky.0.is_empty() {
             SkyVisibility::none()
         } else {
-            SkyVisibility {
-                rays: p.sky.1,
-                transfer: p.sky.0.to_vec(),
-            }
+            SkyVisibility::from_lists(p.sky.1, p.sky.0)
         },
         info_json: serde_json::to_string(&info).expect("info serializes"),
     }

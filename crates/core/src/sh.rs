@@ -1,17 +1,17 @@
-//! Real spherical harmonics up to band 2 (9 coefficients): the basis the
-//! sky's radiance and the baked sky visibility meet in (`docs/design.md`,
-//! "Sky"). The sky's irradiance at a point is the dot product of the
-//! sky's coefficients `L_lm = ∫ L(ω) Y_lm(ω) dω` and the point's transfer
+//! Real spherical harmonics up to band 2 (9 coefficients), for smooth
+//! functions of direction such as a probe's irradiance (issue 46). A
+//! point's irradiance under a radiance `L` is the dot product of
+//! `L_lm = ∫ L(ω) Y_lm(ω) dω` and the point's transfer
 //! `T_lm = ∫ V(ω) max(0, n·ω) Y_lm(ω) dω` (precomputed radiance transfer,
-//! Sloan, Kautz and Snyder 2002): exact for a sky whose radiance lies in
-//! bands 0–2, and for any sky where nothing is occluded and the cosine
-//! lobe's energy is 99 % in bands 0–2 (Ramamoorthi and Hanrahan 2001).
+//! Sloan, Kautz and Snyder 2002): exact for a radiance within bands 0–2,
+//! and for any where nothing is occluded (the cosine lobe's energy is 99 %
+//! in bands 0–2, Ramamoorthi and Hanrahan 2001).
 //!
-//! Band 2 rather than 1: with bands 0–1 a sky brighter at the zenith than
-//! at the horizon is a single tilt, and the irradiance of a wall under a
-//! clear sky (the horizon band) is off by up to 25 %; band 2 keeps the
-//! horizon-to-zenith shape (the error `tests/sky.rs` measures against
-//! brute force).
+//! The sky used these first and no longer does: where visibility cuts a
+//! window out of a peaked sky the product needs far higher bands (22 % off
+//! on a floor under an opening with the sun in view); the sky's basis is
+//! its cells (`crates/core/src/sky/cells.rs`, where the errors are
+//! measured).
 
 /// Coefficients per colour channel.
 pub const COEFFICIENTS: usize = 9;

@@ -1,18 +1,17 @@
-//! The sky on the patches: `D_sky = Σ_lm L_lm T_lm` per patch and channel,
-//! from the sky's band-2 coefficients ([`Sky::coefficients`]) and each
-//! patch's baked transfer ([`radiosity_bakefile::sky`]). It enters `B0`
+//! The sky on the patches: `D_sky = Σ_c L̄_c T_c` per patch and channel,
+//! from the sky's mean radiance per sky cell ([`Sky::cell_radiance`]) and
+//! each patch's baked visibility per cell ([`radiosity_bakefile::sky`]). It enters `B0`
 //! as `ρ ∘ D_sky` like any light's irradiance and is bounced by the same
 //! gather ([`crate::Runtime::set_sky`]).
 
 use radiosity_bakefile::baked::Baked;
-use radiosity_core::sh;
 use radiosity_core::sky::Sky;
 
 /// A sky asked of a bake that has no sky visibility.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "the bake {file} has no sky visibility (made before skies, or with form factors that cast no \
-     rays): a sky lights nothing until the scene is baked again"
+    "the bake {file} has no sky visibility (made before skies or with an older layout of it, or \
+     with form factors that cast no rays): a sky lights nothing until the scene is baked again"
 )]
 pub struct NoSkyVisibility {
     pub file: String,
@@ -25,17 +24,12 @@ pub fn irradiance(baked: &Baked, sky: &Sky) -> Result<[Vec<f32>; 3], NoSkyVisibi
             file: baked.file.clone(),
         });
     }
-    let l = sky.coefficients();
-    let e: Vec<[f64; 3]> = baked
-        .sky
-        .transfer
-        .iter()
-        .map(|t| sh::irradiance(&l, t))
+    let l = sky.cell_radiance();
+    let v = &baked.sky;
+    let e: Vec<[f64; 3]> = (0..baked.patches.len())
+        .map(|i| radiosity_core::sky::cells::irradiance(&l, v.patch(i)))
         .collect();
-    // A transfer's band-1 and band-2 terms can outweigh band 0 for a
-    // patch that sees a sliver of sky under a sky far brighter on the
-    // other side: irradiance is never negative, so clamp at 0.
     Ok(std::array::from_fn(|c| {
-        e.iter().map(|v| v[c].max(0.0) as f32).collect()
+        e.iter().map(|v| v[c] as f32).collect()
     }))
 }

@@ -315,9 +315,10 @@ pub struct FormFactors {
     pub f: Vec<f32>,
     /// Indices of the input patches kept, increasing.
     pub kept: Vec<usize>,
-    /// Per kept patch, its sky transfer (`radiosity_bakefile::sky`), from
-    /// the rays that left the scene; empty where the method casts none.
-    pub sky: Vec<[f32; radiosity_core::sh::COEFFICIENTS]>,
+    /// Per kept patch, its `(sky cell, T_c)` (`radiosity_bakefile::sky`),
+    /// from the rays that left the scene; empty where the method casts
+    /// none.
+    pub sky: Vec<Vec<(u8, f32)>>,
     pub stats: FormFactorStats,
 }
 

@@ -48,7 +48,7 @@ use radiosity_core::bvh::Bvh;
 use radiosity_core::bvh4::Bvh4;
 use radiosity_core::math::{add, dot, norm, normalize, scale, sub, tangent_basis, SplitMix64};
 use radiosity_core::scene::Scene;
-use radiosity_core::sh;
+use radiosity_core::sky::cells::{cell, CELLS};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -85,7 +85,7 @@ struct Fan {
 }
 
 /// Ray counts of one emitter.
-#[derive(Default, Clone, Copy)]
+#[derive(Default, Clone)]
 struct RowCounts {
     escaped: u64,
     back: u64,
@@ -96,9 +96,9 @@ struct RowCounts {
     /// geometry"), and rays from its covered part would meet the solid it
     /// is hidden in. The row is over the rays cast.
     covered: u64,
-    /// `Σ Y_lm(d)` over the escaped rays: the sky's transfer times
-    /// `cast / π` (cosine-weighted rays; `radiosity_bakefile::sky`).
-    sky: [f64; sh::COEFFICIENTS],
+    /// The escaped rays per sky cell, `(cell, rays)` for the cells
+    /// reached, increasing (`radiosity_bakefile::sky`).
+    sky: Vec<(u8, u32)>,
 }
 
 impl RowCounts {
@@ -194,15 +194,19 @@ pub fn form_factors(
     stats.sinkhorn_iterations = iterations as u64;
     stats.sinkhorn_residual = residual;
     let mut out = finish_symmetric(n, g, &areas, &mut stats)?;
-    // Each kept patch's sky transfer: with cosine-weighted directions
-    // (pdf cos/π), `T_lm ≈ π/N Σ_escaped Y_lm(d)` over the N rays cast.
+    // Each kept patch's visible solid angle per sky cell: with
+    // cosine-weighted directions (pdf cos/π), `T_c = π/N` × the rays that
+    // escaped through cell c of the N cast (`RowCounts::cast`).
     out.sky = out
         .kept
         .iter()
         .map(|&i| {
             let r = &rows[i];
+            let scale = std::f64::consts::PI / r.cast(rays);
             r.sky
-                .map(|t| (std::f64::consts::PI * t / r.cast(rays)) as f32)
+                .iter()
+                .map(|&(c, k)| (c, (f64::from(k) * scale) as f32))
+                .collect()
         })
         .collect();
     stats.row_sum_mean = out
@@ -231,6 +235,7 @@ fn emit(
     row: &mut [f32],
 ) -> RowCounts {
     let mut c = RowCounts::default();
+    let mut sky = [0u32; CELLS];
     let origins = Origins::of_patch(i, pieces, geo, tracer.vox, 0x9e37_79b9_7f4a_7c15);
     if origins.is_empty() {
         return c;
@@ -247,9 +252,7 @@ fn emit(
             Hit::Escaped => {
                 c.escaped += 1;
                 // The rays that leave the scene are the sky's.
-                for (t, y) in c.sky.iter_mut().zip(sh::basis(d)) {
-                    *t += y;
-                }
+                sky[cell(d)] += 1;
             }
             Hit::Back => c.back += 1,
             Hit::Unowned => c.unowned += 1,
@@ -259,6 +262,10 @@ fn emit(
             }
         }
     }
+    c.sky = (0..CELLS)
+        .filter(|&k| sky[k] > 0)
+        .map(|k| (k as u8, sky[k]))
+        .collect();
     c
 }
 

@@ -9,7 +9,6 @@
 //! and shared by the clones of its sky ([`Shared`]).
 
 use crate::error::ImageError;
-use crate::sh;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -161,59 +160,53 @@ impl LatLong {
         })
     }
 
-    /// `∫ L(ω) Y_lm(R ω) dω` per channel, the map turned by `rotate` (the
-    /// sky's rotation, applied to each direction): each texel's radiance
-    /// (constant over the texel) times the basis integrated over the
-    /// texel on `s × s` cells uniform in `cos θ` and `φ` (uniform in solid
-    /// angle) — two Gauss–Legendre nodes in `cos θ` (exact for the zonal
-    /// basis, polynomials of degree ≤ 2) and the midpoint in `φ` — with
-    /// `s` chosen so that a column holds at least [`SH_ROWS`] cells: the
-    /// other terms' error is second order in the cell's size.
-    pub fn project(&self, rotate: impl Fn([f64; 3]) -> [f64; 3]) -> [[f64; 3]; sh::COEFFICIENTS] {
+    /// Each sky cell's mean radiance ([`super::cells`]), the map turned by
+    /// `rotate` (the sky's rotation, applied to each direction): the map
+    /// as constant texels, each texel cut into `s × s` parts uniform in
+    /// `cos θ` and `φ` (equal solid angles), each part's solid angle
+    /// credited to the cell of its centre, with `s` chosen so that a
+    /// column holds at least [`PARTS_PER_COLUMN`] parts: a texel, however small
+    /// (a map's sun), lands in its cell whole, and a large texel is shared
+    /// among the cells it spans.
+    pub fn cell_means(&self, rotate: impl Fn([f64; 3]) -> [f64; 3]) -> Vec<[f64; 3]> {
+        use super::cells::{cell, CELLS};
         let (w, h) = (self.width, self.height);
-        let s = SH_ROWS.div_ceil(h).max(1);
+        let s = PARTS_PER_COLUMN.div_ceil(h).max(1);
         let pi = std::f64::consts::PI;
-        let mut c = [[0.0; 3]; sh::COEFFICIENTS];
+        let mut sum = vec![[0.0; 3]; CELLS];
+        let mut area = vec![0.0; CELLS];
         for y in 0..h {
             let (c0, c1) = (
                 (pi * y as f64 / h as f64).cos(),
                 (pi * (y + 1) as f64 / h as f64).cos(),
             );
-            let omega = 2.0 * pi / w as f64 * (c0 - c1) / (2 * s * s) as f64;
-            for x in 0..w {
-                let l = self.texels[y * w + x];
-                if l == [0.0; 3] {
-                    continue;
-                }
-                let mut b = [0.0; sh::COEFFICIENTS];
-                for i in 0..2 * s {
-                    // Two Gauss–Legendre nodes per cell in cos θ (weights ½).
-                    let node = (i / 2) as f64 + 0.5 + GAUSS2[i % 2];
-                    let cy = c0 + (c1 - c0) * node / s as f64;
-                    let v = cy.clamp(-1.0, 1.0).acos() / pi;
+            let omega = 2.0 * pi / w as f64 * (c0 - c1) / (s * s) as f64;
+            for i in 0..s {
+                let cy = c0 + (c1 - c0) * (i as f64 + 0.5) / s as f64;
+                let v = cy.clamp(-1.0, 1.0).acos() / pi;
+                for x in 0..w {
+                    let l = self.texels[y * w + x];
                     for j in 0..s {
                         let u = (x as f64 + (j as f64 + 0.5) / s as f64) / w as f64;
-                        for (bk, yk) in b.iter_mut().zip(sh::basis(rotate(direction(u, v)))) {
-                            *bk += yk;
+                        let c = cell(rotate(direction(u, v)));
+                        for k in 0..3 {
+                            sum[c][k] += f64::from(l[k]) * omega;
                         }
-                    }
-                }
-                for (ci, bi) in c.iter_mut().zip(b) {
-                    for k in 0..3 {
-                        ci[k] += f64::from(l[k]) * bi * omega;
+                        area[c] += omega;
                     }
                 }
             }
         }
-        c
+        sum.iter()
+            .zip(&area)
+            .map(|(l, &a)| if a > 0.0 { l.map(|v| v / a) } else { [0.0; 3] })
+            .collect()
     }
 }
 
-/// The two Gauss–Legendre nodes on a unit cell, from its centre.
-const GAUSS2: [f64; 2] = [-0.288_675_134_594_812_9, 0.288_675_134_594_812_9];
-
-/// The fewest quadrature cells per column of a map in [`LatLong::project`].
-pub const SH_ROWS: usize = 256;
+/// The fewest parts per column of a map in [`LatLong::cell_means`]: 256,
+/// 16 per cell's height at the horizon.
+pub const PARTS_PER_COLUMN: usize = 256;
 
 /// A loaded map shared by the clones of a sky. Two are equal when they
 /// are the same map (one read) or hold the same texels.
@@ -258,10 +251,10 @@ mod tests {
         }
     }
 
-    /// A constant map projects to the uniform sky's band 0 (4π L Y_00) and
-    /// 0 in the other bands (the zonal ones exactly by the Gauss nodes, the
-    /// others by the full circle in φ), to the sums' rounding, and looks up
-    /// its value everywhere.
+    /// A constant map has its value as every cell's mean and looks it up
+    /// everywhere; a map bright in one texel only puts it in one cell,
+    /// whose mean is the texel's radiance times its share of the cell's
+    /// solid angle.
     #[test]
     fn a_constant_map_is_the_uniform_sky() {
         let m = LatLong {
@@ -270,13 +263,9 @@ mod tests {
             texels: vec![[2.0, 1.0, 0.5]; 128],
             path: PathBuf::from("test.pfm"),
         };
-        let c = m.project(|d| d);
-        let y00 = sh::basis([0.0, 1.0, 0.0])[0];
-        for (k, l) in [2.0, 1.0, 0.5].iter().enumerate() {
-            let band0 = 4.0 * std::f64::consts::PI * l * y00;
-            assert!((c[0][k] - band0).abs() < 1e-12 * band0);
-            for ci in &c[1..] {
-                assert!(ci[k].abs() < 1e-12 * band0, "{c:?}");
+        for l in m.cell_means(|d| d) {
+            for (k, v) in [2.0, 1.0, 0.5].iter().enumerate() {
+                assert!((l[k] - v).abs() < 1e-12, "{l:?}");
             }
         }
         assert_eq!(m.lookup([0.3, -0.9, 0.1]), [2.0, 1.0, 0.5]);

@@ -17,15 +17,16 @@
 //!   `+y`, right-handed (a positive angle turns the map's `−z` column
 //!   towards `−x`: Mitsuba's `<rotate y="1" angle="a"/>` as `to_world`).
 //!
-//! The run time meets a sky through its band-2 spherical harmonics
-//! ([`crate::sh`]) and each patch's baked transfer: `D_sky = Σ L_lm T_lm`.
+//! The run time meets a sky through its mean radiance in each of 256 sky
+//! cells ([`cells`], where the choice over spherical harmonics is
+//! measured) and each patch's baked visibility: `D_sky = Σ_c L̄_c T_c`.
 
 use crate::error::InvalidField;
 use crate::scene_config::Light;
-use crate::sh;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+pub mod cells;
 pub mod envmap;
 pub mod preetham;
 
@@ -65,11 +66,6 @@ pub enum Sky {
 fn one() -> f32 {
     1.0
 }
-
-/// Quadrature rings for a sky's projection ([`sh::project`]): 128 rings
-/// of 256 cells (32,768 directions, about 2 ms); the gradient's kink at the
-/// horizon is resolved to 1/128 of the sphere's height.
-const PROJECTION_RINGS: usize = 128;
 
 impl Sky {
     /// The radiance towards the scene from direction `d` (a unit vector
@@ -111,30 +107,28 @@ impl Sky {
         }
     }
 
-    /// The sky's band-2 coefficients per channel ([`sh::project`]); a
-    /// uniform sky's are exact (band 0 only).
-    pub fn coefficients(&self) -> [[f64; 3]; sh::COEFFICIENTS] {
-        if let Sky::Uniform { radiance } = self {
-            let mut c = [[0.0; 3]; sh::COEFFICIENTS];
-            // ∫ L Y_00 dω = L · 4π · Y_00.
-            let y00 = sh::basis([0.0, 1.0, 0.0])[0];
-            c[0] = radiance.map(|r| f64::from(r) * 4.0 * std::f64::consts::PI * y00);
-            return c;
+    /// The sky's mean radiance in each sky cell ([`cells`]): a uniform
+    /// sky's exactly, a map's texel by texel ([`envmap::LatLong::cell_means`]:
+    /// a map's sun can be smaller than a sub-sample's spacing), the others
+    /// by [`cells::mean_radiance`].
+    pub fn cell_radiance(&self) -> Vec<[f64; 3]> {
+        match self {
+            Sky::Uniform { radiance } => vec![radiance.map(f64::from); cells::CELLS],
+            Sky::Envmap {
+                intensity,
+                rotation_deg,
+                map: Some(m),
+                ..
+            } => {
+                let r = rotation(f64::from(*rotation_deg));
+                let k = f64::from(*intensity);
+                m.0.cell_means(r)
+                    .into_iter()
+                    .map(|c| c.map(|v| v * k))
+                    .collect()
+            }
+            _ => cells::mean_radiance(|d| self.radiance(d)),
         }
-        if let Sky::Envmap {
-            intensity,
-            rotation_deg,
-            map: Some(m),
-            ..
-        } = self
-        {
-            // Texel by texel: a map's sun can be smaller than a quadrature
-            // cell.
-            let r = rotation(f64::from(*rotation_deg));
-            let k = f64::from(*intensity);
-            return m.0.project(r).map(|c| c.map(|v| v * k));
-        }
-        sh::project(|d| self.radiance(d), PROJECTION_RINGS)
     }
 
     /// The sky's sun, a directional light, for a `sunsky` with its sun
@@ -285,7 +279,7 @@ mod tests {
 
     /// The gradient is the horizon's colour at the horizon and the zenith's
     /// and the ground's at the poles; a gradient of three equal colours is
-    /// the uniform sky, coefficient for coefficient (to the quadrature).
+    /// the uniform sky, cell for cell.
     #[test]
     fn a_flat_gradient_is_the_uniform_sky() {
         let g = Sky::Gradient {
@@ -302,7 +296,7 @@ mod tests {
             ground: [2.0; 3],
         };
         let u = Sky::Uniform { radiance: [2.0; 3] };
-        for (a, b) in flat.coefficients().iter().zip(u.coefficients()) {
+        for (a, b) in flat.cell_radiance().iter().zip(u.cell_radiance()) {
             for k in 0..3 {
                 assert!(
                     (a[k] - b[k]).abs() < 1e-9 * (1.0 + b[k].abs()),
