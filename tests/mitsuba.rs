@@ -149,18 +149,20 @@ fn direct_view_matches_mitsuba_on_the_cornell_box() {
 }
 
 /// The sky against Mitsuba 3: a unit box open at the top (inward faces,
-/// voxels of 1/8) seen from above through the opening, lit by a uniform
-/// sky (Mitsuba's `constant`) and by a gradient (an `envmap` of the
-/// exported `sky.pfm`), with a sun. Our direct view takes the sky's direct
-/// light per pixel from the patches' baked transfer through the surface
-/// map (patch resolution: `tests/sky.rs` measures 1.6 % RMS on the floor
-/// against the exact view factor) and shows the sky where rays leave the
-/// scene; Mitsuba's is exact per pixel, and the gradient also carries the
-/// band-2 projection's error. Measured (512 spp, noise removed): uniform
-/// 1.1 % relative RMS (bias +0.2 %), gradient 3.4 % (bias +0.1 %). The
-/// bound, 5 %, is looser than the Cornell box's; a wrong unit, `π`, an
-/// upside-down map or a sky counted twice is far outside it, and dropping
-/// the sky's direct light is more than 15 % off (checked).
+/// voxels of 1/8) seen from above through the opening, with a sun, under
+/// four skies: uniform (Mitsuba's `constant`), a gradient, a sun and sky
+/// (its sun a `directional` emitter) and an asymmetric environment map
+/// turned by 60° (each an `envmap` of the exported `sky.pfm`). Our direct
+/// view takes the sky's direct light per pixel from the patches' baked
+/// visibility through the surface map (patch resolution: `tests/sky.rs`
+/// measures 1.6 % RMS on the floor against the exact view factor) and
+/// shows the sky where rays leave the scene; Mitsuba's is exact per pixel.
+/// Measured (512 spp, noise removed): uniform 1.1 % relative RMS, gradient
+/// 1.4 %, sun and sky 0.0 (within the noise), the turned map 1.0 %; the map
+/// turned the other way is 29 % off, and leaving the sky out more than
+/// 15 % (both checked). The bound, 5 %, is looser than the Cornell box's;
+/// a wrong unit, `π`, an upside-down map or a sky counted twice is far
+/// outside it.
 #[test]
 fn direct_view_under_a_sky_matches_mitsuba() {
     use radiosity::core::sky::Sky;
@@ -188,6 +190,27 @@ fn direct_view_under_a_sky_matches_mitsuba() {
         up: [0.0, 0.0, 1.0],
         fov_y_deg: 40.0,
     };
+    // An asymmetric map: a low sun and sky sampled into a PFM beside the
+    // file, then turned by 60°, so that a map read the wrong way round or
+    // turned the wrong way lights other walls.
+    let map_sky = Sky::Sunsky {
+        sun_direction: [0.8, 0.35, 0.3],
+        turbidity: 4.0,
+        intensity: 1.0,
+    };
+    let (mw, mh) = (256, 128);
+    let texels: Vec<[f32; 3]> = (0..mw * mh)
+        .map(|k| {
+            let (u, v) = (
+                ((k % mw) as f64 + 0.5) / mw as f64,
+                ((k / mw) as f64 + 0.5) / mh as f64,
+            );
+            map_sky
+                .radiance(radiosity::core::sky::envmap::direction(u, v))
+                .map(|x| x as f32)
+        })
+        .collect();
+    radiosity::runtime::tonemap::write_pfm(&dir.join("map.pfm"), mw, mh, &texels).unwrap();
     let skies = [
         Sky::Uniform {
             radiance: [0.5, 0.6, 0.8],
@@ -196,6 +219,19 @@ fn direct_view_under_a_sky_matches_mitsuba() {
             zenith: [0.2, 0.4, 1.0],
             horizon: [1.0, 0.9, 0.7],
             ground: [0.05, 0.1, 0.05],
+        },
+        // Its sun (a directional light, exported as one) lights the floor
+        // through the opening.
+        Sky::Sunsky {
+            sun_direction: [-0.3, 1.0, 0.2],
+            turbidity: 3.0,
+            intensity: 0.01,
+        },
+        Sky::Envmap {
+            file: "map.pfm".into(),
+            intensity: 0.05,
+            rotation_deg: 60.0,
+            map: None,
         },
     ];
     for (k, sky) in skies.into_iter().enumerate() {
@@ -212,17 +248,37 @@ fn direct_view_under_a_sky_matches_mitsuba() {
         };
         let path = dir.join(format!("sky{k}.json"));
         config.save(&path).unwrap();
+        // Read back, so that a map is loaded from beside the file.
+        let config = scene_config::load(&path).unwrap();
         let r = reference(&obj, &path, &dir.join(format!("ref-sky{k}")));
-        rt.set_sky(Some(sky)).unwrap();
-        rt.frame(&config.lights, &config.emission);
+        rt.set_sky(config.sky.clone()).unwrap();
+        rt.frame(&config.frame_lights(), &config.emission);
         let e = image_error(&ours(&rt, &config), &r.direct);
         eprintln!("sky {k}: {e:?}");
         assert!(e.rel_rms < 0.05 && e.bias.abs() < 0.03, "sky {k}: {e:?}");
         // The test can fail: without the sky's direct light on the pixels
         // (the sky set but its term dropped), the image is far off.
+        if let Some(Sky::Envmap { map, .. }) = &config.sky {
+            // The map turned the other way lights other walls.
+            let wrong = Sky::Envmap {
+                file: "map.pfm".into(),
+                intensity: 0.05,
+                rotation_deg: -60.0,
+                map: map.clone(),
+            };
+            rt.set_sky(Some(wrong)).unwrap();
+            rt.frame(&config.lights, &config.emission);
+            let e = image_error(&ours(&rt, &config), &r.direct);
+            eprintln!("sky {k} turned the wrong way: {e:?}");
+            assert!(e.rel_rms > 0.05, "sky {k} turned the wrong way: {e:?}");
+        }
         rt.set_sky(None).unwrap();
-        rt.frame(&config.lights, &config.emission);
-        let e = image_error(&ours(&rt, &config), &r.direct);
+        let no_sky = SceneConfig {
+            sky: None,
+            ..config.clone()
+        };
+        rt.frame(&no_sky.lights, &no_sky.emission);
+        let e = image_error(&ours(&rt, &no_sky), &r.direct);
         assert!(e.rel_rms > 0.15, "sky {k} left out: {e:?}");
     }
 }
