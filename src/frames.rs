@@ -308,11 +308,6 @@ pub(crate) fn draw_headless(
         },
         _ => None,
     };
-    if rt.sky().is_some() && context.is_some() {
-        eprintln!(
-            "warning: the GL renderer does not draw the sky yet (issue 43): --backend cpu does"
-        );
-    }
     let out = match &context {
         Some(ctx) => {
             let gl = &ctx.gl;
@@ -330,6 +325,9 @@ pub(crate) fn draw_headless(
                 },
             )
             .context("preparing the GL renderer")?;
+            // The run time's sky (none where the bake has no sky
+            // visibility: said above).
+            let _ = r.set_sky(gl, rt, rt.sky());
             let start = std::time::Instant::now();
             let fs = r.frame(gl, &config.frame_lights(), &config.emission)?;
             let img = r.render(gl, &config.camera, view, (width, height), &config.emission)?;

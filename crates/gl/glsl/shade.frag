@@ -1,14 +1,16 @@
 // Shading per fragment (host: crates/gl/src/shade.rs; CPU reference:
 // crates/runtime/src/render.rs). light.glsl and surface.glsl are prepended.
 //
-// The radiance of the view (final L = rho/pi (D + H) + Le, direct, indirect,
-// patches) in linear units; alpha is 1 where a front-facing surface is
+// The radiance of the view (final L = rho/pi (D + D_sky + H) + Le, direct,
+// indirect, patches) in linear units, D_sky the sky's through the surface
+// map (sky.rs); alpha is 1 where a front-facing surface is
 // seen (the pixels automatic exposure averages over) and 0 elsewhere.
 // Tone mapping is the CPU's (runtime/tonemap.rs) on the read-back image.
 
 layout(std430, binding = 0) readonly buffer TriangleNormal { float triangle_normal[]; }; // 4 per triangle: normal, twin index bits
 layout(std430, binding = 6) readonly buffer H { float h[]; };              // 3 n, channel-major
 layout(std430, binding = 7) readonly buffer PatchAlbedo { float patch_albedo[]; }; // 3 n, channel-major
+layout(std430, binding = 11) readonly buffer DSky { float d_sky[]; };     // 3 n, channel-major (sky.rs)
 
 uniform sampler2D albedo_texture;
 uniform bool has_texture;
@@ -19,6 +21,7 @@ uniform vec3 emitted;     // Le = scale Ke / pi of the draw's material
 uniform vec3 eye;
 uniform uint n;
 uniform int view_mode;    // 0 final, 1 direct, 2 indirect, 3 patches, 4 weights
+uniform bool has_sky;     // D_sky is bound: the sky's direct light through the surface map
 
 in vec3 v_position;
 in vec2 v_texcoord;
@@ -55,14 +58,17 @@ void main() {
     vec4 ww;
     int how = surface_weights(t, x, wp, ww);
     vec3 hx = vec3(0.0);
+    vec3 sx = vec3(0.0);
+    bool direct_view = view_mode == 0 || view_mode == 1;
     for (int k = 0; k < 4; k++) {
         if (ww[k] > 0.0) {
             uint p = wp[k];
             hx += ww[k] * vec3(h[p], h[n + p], h[2u * n + p]);
+            if (has_sky && direct_view) sx += ww[k] * vec3(d_sky[p], d_sky[n + p], d_sky[2u * n + p]);
         }
     }
     vec3 dx = vec3(0.0);
-    if (view_mode == 0 || view_mode == 1) dx = direct_irradiance(x, ng);
+    if (direct_view) dx = direct_irradiance(x, ng) + sx;
     vec3 r = rho / PI;
     vec3 l;
     if (view_mode == 0) l = r * (dx + hx) + emitted;

@@ -24,6 +24,7 @@ pub mod renderer;
 pub mod scene;
 pub mod shade;
 pub mod shadow;
+pub mod sky;
 pub mod surface;
 pub mod tonemap;
 

@@ -25,6 +25,7 @@ use super::near_field::{GlNearField, NearFieldInputs};
 use super::scene::GlScene;
 use super::shade::{MaterialConstants, Shade};
 use super::shadow::ShadowMaps;
+use super::sky::GlSky;
 use super::surface::GlSurfaceMap;
 use super::{bytes_of, fill_buffer, read_floats, storage_buffer, GlError};
 use glow::HasContext;
@@ -221,6 +222,10 @@ pub struct GlRenderer {
     pub gather: GlGather,
     near: Option<GlNearField>,
     shade: Shade,
+    sky: GlSky,
+    /// The sky changed since the emission buffer (which carries the sky's
+    /// `ρ ∘ D_sky` into `B0`) was last uploaded.
+    sky_changed: bool,
     lights_buffer: glow::Buffer,
     views_buffer: glow::Buffer,
     packed: Packed,
@@ -265,6 +270,7 @@ impl GlRenderer {
             ],
         )?;
         let materials = rt.scene.materials.clone();
+        let sky = GlSky::new(gl, n)?;
         Ok(GlRenderer {
             scene,
             map,
@@ -273,6 +279,8 @@ impl GlRenderer {
             gather,
             near,
             shade,
+            sky,
+            sky_changed: false,
             lights_buffer: storage_buffer(gl, &[], glow::DYNAMIC_DRAW)?,
             views_buffer: storage_buffer(gl, &[], glow::DYNAMIC_DRAW)?,
             packed: Packed::default(),
@@ -316,10 +324,19 @@ impl GlRenderer {
         if stats.unchanged {
             return Ok(stats);
         }
-        if self.last_scales.as_ref() != Some(scales) {
-            self.direct
-                .set_emission(gl, &self.emission.exitance(self.n, scales));
+        if self.last_scales.as_ref() != Some(scales) || self.sky_changed {
+            // The sky's `ρ ∘ D_sky` rides with the emission into `B0`.
+            let mut e = self.emission.exitance(self.n, scales);
+            if let Some(b) = self.sky.b0() {
+                for (ec, bc) in e.iter_mut().zip(b) {
+                    for (x, y) in ec.iter_mut().zip(bc) {
+                        *x += y;
+                    }
+                }
+            }
+            self.direct.set_emission(gl, &e);
             self.last_scales = Some(scales.clone());
+            self.sky_changed = false;
         }
         self.timers.begin(gl, Pass::Direct);
         let samples = self
@@ -464,6 +481,30 @@ impl GlRenderer {
         Ok(stats)
     }
 
+    /// The sky of the next frames (`None`: black), as
+    /// [`Runtime::set_sky`] sets the CPU's (`rt` the run time this renderer
+    /// was made from): refused for a bake without sky visibility, the sky
+    /// then unchanged. The next frame runs every pass.
+    pub fn set_sky(
+        &mut self,
+        gl: &glow::Context,
+        rt: &Runtime,
+        sky: Option<&radiosity_core::sky::Sky>,
+    ) -> Result<(), radiosity_runtime::sky::NoSkyVisibility> {
+        if self.sky.sky() == sky {
+            return Ok(());
+        }
+        self.sky.set(gl, rt, sky)?;
+        self.sky_changed = true;
+        self.last = None;
+        Ok(())
+    }
+
+    /// The sky set ([`GlRenderer::set_sky`]).
+    pub fn sky(&self) -> Option<&radiosity_core::sky::Sky> {
+        self.sky.sky()
+    }
+
     /// Draws `view` from `camera` (`width × height`) with the last frame's
     /// lights and `scales`, into the shading pass's target.
     pub fn draw(
@@ -500,6 +541,7 @@ impl GlRenderer {
             gl,
             &self.scene,
             &self.map,
+            &self.sky,
             &materials,
             camera,
             view,
@@ -590,6 +632,7 @@ impl GlRenderer {
             nf.delete(gl);
         }
         self.shade.delete(gl);
+        self.sky.delete(gl);
         // SAFETY: objects of this context, not used after.
         unsafe {
             gl.delete_buffer(self.lights_buffer);

@@ -8,6 +8,7 @@
 //! primary ray per pixel centre: rasterisation samples the same centres.
 
 use super::scene::GlScene;
+use super::sky::GlSky;
 use super::surface::GlSurfaceMap;
 use super::{compile_program, GlError, Stage};
 use glam::camera::rh::{proj::opengl, view::look_at_mat4};
@@ -222,7 +223,8 @@ impl Shade {
     }
 
     /// Draws `view` from `camera` into the render target (`width ×
-    /// height`). The caller has bound the lights, views, shadow maps
+    /// height`), the sky behind the scene and on its pixels (final and
+    /// direct views). The caller has bound the lights, views, shadow maps
     /// (texture unit 1), `H` (binding 6) and the patch albedo (binding 7),
     /// and sets the light uniforms through `set_lights`.
     #[allow(clippy::too_many_arguments)]
@@ -231,6 +233,7 @@ impl Shade {
         gl: &glow::Context,
         scene: &GlScene,
         map: &GlSurfaceMap,
+        sky: &GlSky,
         materials: &[MaterialConstants],
         camera: &Camera,
         view: View,
@@ -252,6 +255,10 @@ impl Shade {
             gl.clear_color(0.0, 0.0, 0.0, 0.0);
             gl.clear_depth_f32(1.0);
             gl.clear(glow::COLOR_BUFFER_BIT | glow::DEPTH_BUFFER_BIT);
+            let sky_seen = matches!(view, View::Final | View::Direct);
+            if sky_seen {
+                sky.draw_background(gl, vp, camera.position, (width, height));
+            }
             if self.depth_prepass {
                 // Depth first, positions only: the shading pass below then
                 // runs its fragment shader (surface map, every light's
@@ -271,6 +278,7 @@ impl Shade {
             gl.use_program(Some(self.program));
             gl.bind_buffer_base(glow::SHADER_STORAGE_BUFFER, 0, Some(scene.normals));
             map.bind(gl, self.program);
+            sky.bind(gl, self.program);
             set_lights(self.program);
             let loc = |name: &str| gl.get_uniform_location(self.program, name);
             gl.uniform_matrix_4_f32_slice(
