@@ -578,12 +578,6 @@ pub(crate) fn view(job: ViewJob) -> anyhow::Result<()> {
             return Ok(());
         }
     }
-    if config.sky.is_some() {
-        eprintln!(
-            "warning: the window does not draw the sky yet (issue 43): `radiosity render \
-             --backend cpu` (or `view --headless-to` without a display) does"
-        );
-    }
     let report = viewer::run(
         rt,
         ViewerConfig {

@@ -538,3 +538,112 @@ fn a_light_beyond_the_shadow_budget_is_taken_back_and_the_session_goes_on() {
         "{err}"
     );
 }
+
+/// The sky keys (issue 43): Y cycles from the file's none to the sun and
+/// sky, R raises its sun twice and O turns it three times; F5 saves the
+/// sky, with the sun where the keys put it (45° + 10° up, 30° + 15°
+/// round), and the window's last frame is what the headless renderer
+/// draws from the saved file, the sky's sun and its light through the box's
+/// open side included.
+#[test]
+fn sky_keys_cycle_skies_and_move_the_sun_and_the_window_draws_it() {
+    let (obj, dir) = cornell("viewer-sky");
+    let obj_s = obj.to_str().unwrap();
+    let size = [
+        "--width",
+        "160",
+        "--height",
+        "120",
+        "--patches",
+        "800",
+        "--shadow-resolution",
+        "512",
+    ];
+    let png = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    let saved = dir.join("saved.json");
+    let o = run(
+        &dir,
+        &[
+            &[
+                "view",
+                obj_s,
+                "--frames",
+                "8",
+                "--keys",
+                "KeyY,KeyR*2,KeyO*3,F5",
+                "--patch-light",
+                "gpu",
+                "--save-to",
+                saved.to_str().unwrap(),
+                "--exposure",
+                "1",
+                "--screenshot",
+                &png("shot.png"),
+            ][..],
+            &size[..],
+        ],
+        true,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let edited = radiosity::core::scene_config::load(&saved).unwrap();
+    match edited.sky {
+        Some(radiosity::core::sky::Sky::Sunsky { sun_direction, .. }) => {
+            let (e, a) = (55f32.to_radians(), 45f32.to_radians());
+            let want = [e.cos() * a.sin(), e.sin(), -e.cos() * a.cos()];
+            for k in 0..3 {
+                assert!(
+                    (sun_direction[k] - want[k]).abs() < 1e-5,
+                    "{sun_direction:?}"
+                );
+            }
+        }
+        s => panic!("Y shows the sun and sky, saved {s:?}"),
+    }
+    let o = run(
+        &dir,
+        &[
+            &[
+                "render",
+                obj_s,
+                "--backend",
+                "gl",
+                "--camera-lights",
+                saved.to_str().unwrap(),
+                "--exposure",
+                "1",
+                "-o",
+                &png("saved.png"),
+            ][..],
+            &size[..],
+        ],
+        false,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (shot, drawn) = (rgb(&dir.join("shot.png")), rgb(&dir.join("saved.png")));
+    let (worst, mean) = difference(&shot, &drawn);
+    assert!(
+        worst <= 1,
+        "the window's last frame differs by {worst} / 255 (mean {mean})"
+    );
+    // And the sky shows: the box without it, at the same exposure, is far
+    // darker.
+    let o = run(
+        &dir,
+        &[
+            &["render", obj_s, "--backend", "gl", "--exposure", "1"][..],
+            &["-o", &png("base.png")][..],
+            &size[..],
+        ],
+        false,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mean = |i: &image::RgbImage| i.pixels().map(|p| p[1] as f64).sum::<f64>() / 19200.0;
+    let base = rgb(&dir.join("base.png"));
+    assert!(
+        mean(&shot) > 1.5 * mean(&base),
+        "{} against {}",
+        mean(&shot),
+        mean(&base)
+    );
+}

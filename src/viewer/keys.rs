@@ -51,6 +51,11 @@ pub const NAMES: &[(&str, KeyCode)] = &[
     ("F12", KeyCode::F12),
     ("F5", KeyCode::F5),
     ("KeyH", KeyCode::KeyH),
+    ("KeyY", KeyCode::KeyY),
+    ("KeyR", KeyCode::KeyR),
+    ("KeyF", KeyCode::KeyF),
+    ("KeyU", KeyCode::KeyU),
+    ("KeyO", KeyCode::KeyO),
 ];
 
 /// The most presses a script may hold (each is at least one frame).

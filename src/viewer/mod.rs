@@ -19,6 +19,7 @@
 
 pub mod controls;
 pub mod keys;
+pub mod sky;
 
 use crate::core::scene_config::SceneConfig;
 use crate::gl::renderer::{GlOptions, GlRenderer, PASSES};
@@ -136,6 +137,7 @@ Tab: next light; arrows, PageUp/PageDown: move it; I J K L: turn it
 + -: brighter, dimmer; [ ]: narrower, wider cone; C: colour
 N: add a point light here; B: a spot looking ahead; G: a sun shining ahead; Delete: remove
 M: emissive materials off / on; X: automatic exposure again
+Y: next sky (the file's, none, sun and sky, overcast, clear); R F: sun up, down; U O: sun round
 P or F12: screenshot; F5 or Ctrl+S: save camera and lights; H: help; Esc: quit";
 
 struct State {
@@ -153,6 +155,9 @@ struct App {
     cfg: ViewerConfig,
     camera: CameraRig,
     lights: LightRig,
+    sky: sky::SkyRig,
+    /// The sky last given to the run time and the renderer.
+    applied_sky: Option<Option<crate::core::sky::Sky>>,
     view: View,
     exposure: Option<f32>,
     state: Option<State>,
@@ -206,6 +211,8 @@ pub fn run(rt: Runtime, cfg: ViewerConfig) -> Result<ViewerReport, ViewerError> 
     let mut app = App {
         camera: CameraRig::new(&cfg.config.camera),
         lights: LightRig::new(&cfg.config, diagonal, emissive),
+        sky: sky::SkyRig::new(cfg.config.sky.clone()),
+        applied_sky: None,
         view: View::Final,
         exposure: cfg.exposure,
         rt,
@@ -324,7 +331,9 @@ impl App {
         gl: &glow::Context,
         renderer: &mut GlRenderer,
     ) -> Result<(), ViewerError> {
-        let (lights, scales) = (&self.lights.lights, &self.lights.emission);
+        apply_sky(&mut self.rt, &self.sky, &mut self.applied_sky, gl, renderer);
+        let lights = &self.sky.frame_lights(&self.lights.lights);
+        let scales = &self.lights.emission;
         let timed = |f: &mut dyn FnMut() -> Result<(), ViewerError>| {
             let t = Instant::now();
             f()?;
@@ -370,21 +379,24 @@ impl App {
             return Ok(());
         };
         let gl = &state.gl;
+        apply_sky(
+            &mut self.rt,
+            &self.sky,
+            &mut self.applied_sky,
+            gl,
+            &mut state.renderer,
+        );
+        let lights = self.sky.frame_lights(&self.lights.lights);
         if self.patch_light == PatchLight::Cpu {
-            let fs = self.rt.frame(&self.lights.lights, &self.lights.emission);
+            let fs = self.rt.frame(&lights, &self.lights.emission);
             if !fs.unchanged {
                 self.cpu_ms = 1e3 * fs.seconds_total;
             }
-            state.renderer.frame_with_h(
-                gl,
-                &self.lights.lights,
-                &self.lights.emission,
-                self.rt.h(),
-            )?;
-        } else {
             state
                 .renderer
-                .frame(gl, &self.lights.lights, &self.lights.emission)?;
+                .frame_with_h(gl, &lights, &self.lights.emission, self.rt.h())?;
+        } else {
+            state.renderer.frame(gl, &lights, &self.lights.emission)?;
         }
         Ok(())
     }
@@ -479,12 +491,13 @@ impl App {
                 String::new()
             };
             state.window.set_title(&format!(
-                "{} | {:?} | {:.1} fps | GPU: {}{cpu} | {} | H: help",
+                "{} | {:?} | {:.1} fps | GPU: {}{cpu} | {} | {} | H: help",
                 self.cfg.title,
                 self.view,
                 self.fps,
                 passes.join(", "),
-                self.lights.describe()
+                self.lights.describe(),
+                self.sky.describe()
             ));
         }
         if self.screenshot_due {
@@ -516,6 +529,7 @@ impl App {
             camera: self.camera.camera(),
             lights: self.lights.lights.clone(),
             emission: self.lights.emission.clone(),
+            sky: self.sky.current(),
             ..self.cfg.config.clone()
         };
         c.save(&self.cfg.save_to)
@@ -571,6 +585,11 @@ impl App {
             KeyCode::KeyP | KeyCode::F12 => self.screenshot_due = true,
             KeyCode::F5 => self.save_config()?,
             KeyCode::KeyH => eprintln!("{HELP}"),
+            KeyCode::KeyY => self.sky.next(),
+            KeyCode::KeyR => self.sky.move_sun(sky::SUN_STEP_DEG, 0.0),
+            KeyCode::KeyF => self.sky.move_sun(-sky::SUN_STEP_DEG, 0.0),
+            KeyCode::KeyU => self.sky.move_sun(0.0, -sky::SUN_STEP_DEG),
+            KeyCode::KeyO => self.sky.move_sun(0.0, sky::SUN_STEP_DEG),
             _ => {}
         }
         Ok(())
@@ -666,5 +685,30 @@ impl ApplicationHandler for App {
         if let Some(s) = &self.state {
             s.window.request_redraw();
         }
+    }
+}
+
+/// Gives the sky shown to the run time and the renderer when it changed
+/// since it was last given; a bake without sky visibility says so once
+/// per change (the sky's sun still lights the frame: it is a light).
+fn apply_sky(
+    rt: &mut Runtime,
+    rig: &sky::SkyRig,
+    applied: &mut Option<Option<crate::core::sky::Sky>>,
+    gl: &glow::Context,
+    renderer: &mut GlRenderer,
+) {
+    let sky = rig.current();
+    if applied.as_ref() == Some(&sky) {
+        return;
+    }
+    *applied = Some(sky.clone());
+    match rt.set_sky(sky.clone()) {
+        Ok(()) => {
+            if let Err(e) = renderer.set_sky(gl, rt, sky.as_ref()) {
+                eprintln!("{e}");
+            }
+        }
+        Err(e) => eprintln!("{e}"),
     }
 }
