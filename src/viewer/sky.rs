@@ -175,8 +175,13 @@ mod tests {
         let lights = rig.frame_lights(&[]);
         match lights[..] {
             [Light::Directional { direction, .. }] => {
-                // Towards +x at 30°: the light travels to −x and down.
-                assert!(direction[0] < -0.8 && direction[1] < -0.4, "{direction:?}");
+                // The sun 30° up, 30° + 90° round from −z towards +x: the
+                // light travels away from it.
+                let (e, a) = (30f32.to_radians(), 120f32.to_radians());
+                let to_sun = [e.cos() * a.sin(), e.sin(), -e.cos() * a.cos()];
+                for k in 0..3 {
+                    assert!((direction[k] + to_sun[k]).abs() < 1e-6, "{direction:?}");
+                }
             }
             _ => panic!("{lights:?}"),
         }
