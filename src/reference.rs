@@ -18,13 +18,21 @@
 //! 1/8 (survival probability `8 β`, unbiased). Albedo and emission are the
 //! material's (`Kd` × the texture's mean, `Ke`), as the bake's patches.
 //! Seeded per point: the same inputs give the same numbers.
+//!
+//! Under a sky ([`PathTracer::with_sky`]) a path that leaves the scene
+//! sees it: from `x` itself that is the sky's direct irradiance at `x`
+//! (`π L(d)` per cosine-distributed direction; estimated apart, as the
+//! run time's `D_sky`), from a later vertex it adds `β π L(d)` to `H` —
+//! the sky reflected there, within the same count of reflections.
 
 use crate::core::direct::DirectLight;
 use crate::core::light::Prepared;
 use crate::core::math::{add, dot, normalize, scale, tangent_basis, SplitMix64};
 use crate::core::scene::Scene;
 use crate::core::scene_config::Light;
+use crate::core::sky::Sky;
 use rayon::prelude::*;
+use std::f64::consts::PI;
 
 /// Paths below this throughput play Russian roulette.
 const ROULETTE_BELOW: f64 = 0.125;
@@ -34,6 +42,7 @@ pub struct PathTracer<'a> {
     scene: &'a Scene,
     direct: DirectLight,
     far: f64,
+    sky: Option<Sky>,
 }
 
 /// An estimate and its standard error (per channel).
@@ -47,7 +56,18 @@ impl<'a> PathTracer<'a> {
     pub fn new(scene: &'a Scene) -> PathTracer<'a> {
         let direct = DirectLight::new(scene);
         let far = 4.0 * direct.far();
-        PathTracer { scene, direct, far }
+        PathTracer {
+            scene,
+            direct,
+            far,
+            sky: None,
+        }
+    }
+
+    /// The same tracer under `sky` (module doc).
+    pub fn with_sky(mut self, sky: Option<Sky>) -> PathTracer<'a> {
+        self.sky = sky;
+        self
     }
 
     /// The indirect irradiance at `x` (normal `n`) from `paths` paths,
@@ -62,24 +82,41 @@ impl<'a> PathTracer<'a> {
         bounces: Option<u32>,
         seed: u64,
     ) -> Estimate {
+        self.indirect_and_sky(x, n, lights, paths, bounces, seed).0
+    }
+
+    /// [`PathTracer::indirect`], and the sky's direct irradiance at `x`
+    /// from the same paths' first directions (0 without a sky).
+    pub fn indirect_and_sky(
+        &self,
+        x: [f64; 3],
+        n: [f64; 3],
+        lights: &[Light],
+        paths: usize,
+        bounces: Option<u32>,
+        seed: u64,
+    ) -> (Estimate, Estimate) {
         let mut rng = SplitMix64::new(seed);
         let lights = Prepared::all(lights);
-        let (mut s, mut s2) = ([0.0f64; 3], [0.0f64; 3]);
+        let mut sums = [([0.0f64; 3], [0.0f64; 3]); 2];
         for _ in 0..paths {
             let v = self.path(x, n, &lights, bounces.unwrap_or(u32::MAX), &mut rng);
-            for c in 0..3 {
-                s[c] += v[c];
-                s2[c] += v[c] * v[c];
+            for (k, (s, s2)) in sums.iter_mut().enumerate() {
+                for c in 0..3 {
+                    s[c] += v[k][c];
+                    s2[c] += v[k][c] * v[k][c];
+                }
             }
         }
         let k = paths.max(1) as f64;
-        Estimate {
+        let estimate = |(s, s2): ([f64; 3], [f64; 3])| Estimate {
             mean: s.map(|v| v / k),
             std_error: std::array::from_fn(|c| {
                 let m = s[c] / k;
                 ((s2[c] / k - m * m).max(0.0) / k).sqrt()
             }),
-        }
+        };
+        (estimate(sums[0]), estimate(sums[1]))
     }
 
     fn path(
@@ -89,18 +126,38 @@ impl<'a> PathTracer<'a> {
         lights: &[Prepared],
         bounces: u32,
         rng: &mut SplitMix64,
-    ) -> [f64; 3] {
+    ) -> [[f64; 3]; 2] {
         let bvh = self.direct.bvh();
         let offset = self.direct.offset();
         let (mut x, mut n) = (x0, n0);
         let mut beta = [1.0f64; 3];
         let mut h = [0.0f64; 3];
-        for _ in 0..bounces.min(1000) {
+        let mut sky_direct = [0.0f64; 3];
+        let bounces = bounces.min(1000);
+        for step in 0..=bounces {
+            // The last step only looks for the sky past the last
+            // reflection.
+            if step == bounces && self.sky.is_none() {
+                break;
+            }
             let d = cosine_direction(n, rng);
             let o = add(x, scale(n, offset));
             let Some((k, t)) = self.direct.closest_hit(o, scale(d, self.far)) else {
+                if let Some(sky) = &self.sky {
+                    let l = sky.radiance(d);
+                    for c in 0..3 {
+                        if step == 0 {
+                            sky_direct[c] = PI * l[c];
+                        } else {
+                            h[c] += beta[c] * PI * l[c];
+                        }
+                    }
+                }
                 break;
             };
+            if step == bounces {
+                break;
+            }
             let mut tri = bvh.order[k as usize] as usize;
             let mut ng = self.scene.triangle_normal(tri);
             if dot(ng, d) >= 0.0 {
@@ -137,7 +194,7 @@ impl<'a> PathTracer<'a> {
             x = y;
             n = ng;
         }
-        h
+        [h, sky_direct]
     }
 
     /// The indirect irradiance averaged over each of `points` groups
@@ -151,14 +208,30 @@ impl<'a> PathTracer<'a> {
         bounces: Option<u32>,
         seed: u64,
     ) -> Vec<Estimate> {
+        self.mean_over_with_sky(groups, lights, paths, bounces, seed)
+            .into_iter()
+            .map(|(h, _)| h)
+            .collect()
+    }
+
+    /// [`PathTracer::mean_over`], and the sky's direct irradiance averaged
+    /// the same way.
+    pub fn mean_over_with_sky(
+        &self,
+        groups: &[Vec<([f64; 3], [f64; 3])>],
+        lights: &[Light],
+        paths: usize,
+        bounces: Option<u32>,
+        seed: u64,
+    ) -> Vec<(Estimate, Estimate)> {
         groups
             .par_iter()
             .enumerate()
             .map(|(g, pts)| {
-                let mut e = Estimate::default();
+                let mut e = [Estimate::default(); 2];
                 let k = pts.len().max(1) as f64;
                 for (i, (x, n)) in pts.iter().enumerate() {
-                    let s = self.indirect(
+                    let s = self.indirect_and_sky(
                         *x,
                         *n,
                         lights,
@@ -166,13 +239,17 @@ impl<'a> PathTracer<'a> {
                         bounces,
                         seed.wrapping_add((g as u64) << 20 | i as u64),
                     );
-                    for c in 0..3 {
-                        e.mean[c] += s.mean[c] / k;
-                        e.std_error[c] += s.std_error[c] * s.std_error[c] / (k * k);
+                    for (ek, sk) in e.iter_mut().zip([s.0, s.1]) {
+                        for c in 0..3 {
+                            ek.mean[c] += sk.mean[c] / k;
+                            ek.std_error[c] += sk.std_error[c] * sk.std_error[c] / (k * k);
+                        }
                     }
                 }
-                e.std_error = e.std_error.map(f64::sqrt);
-                e
+                for ek in &mut e {
+                    ek.std_error = ek.std_error.map(f64::sqrt);
+                }
+                (e[0], e[1])
             })
             .collect()
     }

@@ -12,7 +12,11 @@
 //! (`√(Σ A (H − H_ref)²) / √(Σ A H_ref²)`), the reference's own noise in
 //! the same measure, and the same for the first reflection (`F · B0`
 //! against one reflection, `F` recomputed from the bake's options) and for
-//! the later bounces (the difference). Also the form factors' area-weighted
+//! the later bounces (the difference). Under a sky (the camera-and-lights
+//! file's), `H` carries the sky bounced, and the sky's direct irradiance
+//! on the patches (`D_sky`, from the baked sky cells) is compared with the
+//! path tracer's, which sees the sky where its first direction leaves the
+//! scene. Also the form factors' area-weighted
 //! row sums against the fraction of the real hemisphere that meets front
 //! faces, measured by cosine-distributed rays from the same points.
 
@@ -49,6 +53,8 @@ pub struct AccuracyReport {
     pub total: Comparison,
     pub first_reflection: Option<Comparison>,
     pub later_bounces: Option<Comparison>,
+    /// The sky's direct irradiance `D_sky` against the path tracer's.
+    pub sky: Option<Comparison>,
     /// Area-weighted mean row sum of `F`, and of the front-face fraction.
     pub row_sum: Option<f64>,
     pub front_fraction: f64,
@@ -105,7 +111,11 @@ pub fn run(
             ..RuntimeOptions::default()
         },
     );
-    rt.frame(&config.lights, &config.emission);
+    rt.set_sky(config.sky.clone())
+        .context("the camera-and-lights file has a sky")?;
+    // The file's lights and the sky's sun.
+    let lights = &config.frame_lights()[..];
+    rt.frame(lights, &config.emission);
     let areas: Vec<f64> = rt.baked.patches.iter().map(|p| p.area as f64).collect();
     let groups: Vec<Vec<([f64; 3], [f64; 3])>> = (0..n)
         .map(|j| {
@@ -121,8 +131,11 @@ pub fn run(
         })
         .collect();
     let start = std::time::Instant::now();
-    let pt = PathTracer::new(&rt.scene);
-    let reference = pt.mean_over(&groups, &config.lights, paths, None, 0x5eed);
+    let pt = PathTracer::new(&rt.scene).with_sky(config.sky.clone());
+    let (reference, sky_reference): (Vec<_>, Vec<_>) = pt
+        .mean_over_with_sky(&groups, lights, paths, None, 0x5eed)
+        .into_iter()
+        .unzip();
     let h: Vec<[f64; 3]> = (0..n)
         .map(|j| std::array::from_fn(|c| rt.h()[c][j] as f64))
         .collect();
@@ -138,6 +151,14 @@ pub fn run(
         total: compare(&areas, &h, &r, &se),
         ..Default::default()
     };
+    if let Some(d) = rt.d_sky() {
+        let ours: Vec<[f64; 3]> = (0..n)
+            .map(|j| std::array::from_fn(|c| f64::from(d[c][j])))
+            .collect();
+        let m: Vec<[f64; 3]> = sky_reference.iter().map(|e| e.mean).collect();
+        let e: Vec<[f64; 3]> = sky_reference.iter().map(|e| e.std_error).collect();
+        report.sky = Some(compare(&areas, &ours, &m, &e));
+    }
     // The real hemisphere's front-face fraction.
     let fronts: Vec<f64> = groups
         .par_iter()
@@ -185,7 +206,7 @@ pub fn run(
                 }
             } else {
                 let m = rt.near.m;
-                let (d_points, _) = direct::irradiance(&rt.baked, &rt.direct, &config.lights, m);
+                let (d_points, _) = direct::irradiance(&rt.baked, &rt.direct, lights, m);
                 rt.near_correction(&d_points)
                     .expect("the bake has a correction")
             };
@@ -215,7 +236,7 @@ pub fn run(
                 .sum::<f64>()
                 / atot;
             report.row_sum = Some(rows);
-            let r1 = pt.mean_over(&groups, &config.lights, paths, Some(1), 0x5eed);
+            let r1 = pt.mean_over(&groups, lights, paths, Some(1), 0x5eed);
             let r1m: Vec<[f64; 3]> = r1.iter().map(|e| e.mean).collect();
             let r1s: Vec<[f64; 3]> = r1.iter().map(|e| e.std_error).collect();
             report.first_reflection = Some(compare(&areas, &f1, &r1m, &r1s));
@@ -254,6 +275,9 @@ pub fn run(
         );
     };
     line(&mut s, "H = T̃ B0", &report.total);
+    if let Some(c) = &report.sky {
+        line(&mut s, "sky's direct irradiance D_sky (sky cells)", c);
+    }
     if let Some(c) = &report.first_reflection {
         line(&mut s, "first reflection F B0 + near field", c);
     }

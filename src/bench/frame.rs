@@ -309,7 +309,8 @@ pub(crate) struct FrameTimes {
 /// cache), then the gather alone over every column and over the frame's
 /// active ones; the fastest of `repeat` runs each.
 pub(crate) fn time_frame(rt: &mut Runtime, config: &SceneConfig, repeat: usize) -> FrameTimes {
-    let (stats, frame) = best(repeat, || rt.frame(&config.lights, &config.emission));
+    let lights = config.frame_lights();
+    let (stats, frame) = best(repeat, || rt.frame(&lights, &config.emission));
     let b0 = rt.b0().clone();
     let (h, _, _) = rt.product(&b0);
     let refs = [&b0[0][..], &b0[1][..], &b0[2][..]];
@@ -373,6 +374,24 @@ pub fn run(
             ..RuntimeOptions::default()
         },
     );
+    // The sky's cost: the same frame without it, then with it (the sky
+    // term: `D_sky` from the sky's cells and one more gather).
+    let sky_cost = match &config.sky {
+        None => None,
+        Some(sky) => {
+            rt.set_sky(None).expect("no sky is always accepted");
+            let (_, without) = best(options.repeat, || {
+                rt.frame(&config.frame_lights(), &config.emission)
+            });
+            rt.set_sky(Some(sky.clone()))
+                .context("the camera-and-lights file has a sky")?;
+            let t0 = std::time::Instant::now();
+            let cells = sky.cell_radiance();
+            let t_cells = t0.elapsed().as_secs_f64();
+            drop(cells);
+            Some((without, t_cells))
+        }
+    };
     let ft = time_frame(&mut rt, config, options.repeat);
     let (fs, t_frame, b0, h_rt) = (ft.stats, ft.frame, ft.b0, ft.h);
     let refs = [&b0[0][..], &b0[1][..], &b0[2][..]];
@@ -382,10 +401,9 @@ pub fn run(
     let ((s_all, t_all), (s_lit, t_lit)) = (ft.gather_all, ft.gather_lit);
     // Unchanged frame.
     rt.options.cache = true;
-    rt.frame(&config.lights, &config.emission);
-    let (fu, t_unchanged) = best(options.repeat, || {
-        rt.frame(&config.lights, &config.emission)
-    });
+    let lights = config.frame_lights();
+    rt.frame(&lights, &config.emission);
+    let (fu, t_unchanged) = best(options.repeat, || rt.frame(&lights, &config.emission));
     assert!(fu.unchanged);
     // Rendering.
     let (_, t_render) = best(1, || {
@@ -406,12 +424,22 @@ pub fn run(
         "| frame, nothing reused | {:.2} ms | direct {:.2} ms ({} lights, {} samples per patch), near-field correction {:.3} ms ({} links), gathers {:.2} ms |",
         1e3 * t_frame,
         1e3 * fs.seconds_direct,
-        config.lights.len(),
+        lights.len(),
         rt.options.samples,
         1e3 * fs.seconds_near_field,
         rt.near.links(),
         1e3 * fs.seconds_gather
     )?;
+    if let (Some((without, t_cells)), Some(sky)) = (sky_cost, &config.sky) {
+        writeln!(
+            out,
+            "| the sky ({}) | +{:.2} ms | the frame above against {:.2} ms without the sky: its cells' mean radiance {:.2} ms (on a sky change), `D_sky` and one more gather |",
+            sky.kind(),
+            1e3 * (t_frame - without),
+            1e3 * without,
+            1e3 * t_cells
+        )?;
+    }
     let gb = |s: &crate::runtime::gather::GatherStats, t: f64| s.bytes_read as f64 / t;
     writeln!(
         out,

@@ -217,6 +217,8 @@ fn point(
             ..RuntimeOptions::default()
         },
     );
+    rt.set_sky(config.sky.clone())
+        .context("the camera-and-lights file has a sky")?;
     let ft = time_frame(&mut rt, config, options.repeat);
     let (fs, t_frame, b0, h) = (ft.stats, ft.frame, ft.b0, ft.h);
     let (all, lit) = (ft.all, ft.lit);
@@ -341,8 +343,12 @@ fn gl_frame(
     ) else {
         return (None, None, None);
     };
+    if r.set_sky(gl, rt, rt.sky()).is_err() {
+        return (None, None, None);
+    }
+    let lights = config.frame_lights();
     let (res, t) = best(repeat, || -> Result<(), crate::gl::GlError> {
-        r.frame(gl, &config.lights, &config.emission)?;
+        r.frame(gl, &lights, &config.emission)?;
         r.draw(
             gl,
             &config.camera,

@@ -1,4 +1,4 @@
-//! The optional sections: the near-field correction, the sky transfer and
+//! The optional sections: the near-field correction, the sky visibility and
 //! the column scales, their round trips and their rejections.
 
 use super::*;

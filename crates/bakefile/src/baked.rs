@@ -72,7 +72,7 @@ pub struct Baked {
     /// The near-field correction, in matrix order (empty for a bake made
     /// without it).
     pub near_field: NearField,
-    /// The patches' sky transfer, in matrix order (empty for a bake made
+    /// The patches' sky visibility, in matrix order (empty for a bake made
     /// without it: a sky then lights nothing).
     pub sky: crate::sky::SkyVisibility,
     pub options: OptionsRecord,

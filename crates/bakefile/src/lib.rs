@@ -53,7 +53,7 @@
 //! | `SMAP` | the per-pixel surface map ([`surface`] gives the layout)                  |
 //! | `PSMP` | the patches' sample points ([`surface`])                                  |
 //! | `NEAR` | optional: the near-field correction ([`near_field`] gives the layout)     |
-//! | `SKYV` | optional: the patches' sky transfer ([`sky`] gives the layout)             |
+//! | `SKYV` | optional: the patches' sky visibility ([`sky`] gives the layout)           |
 //! | `INFO` | the bake report record [`records::BakeInfo`], JSON text                   |
 //!
 //! Sections are found through the table, never by position; the writer
@@ -176,7 +176,7 @@ pub mod tag {
     /// The near-field correction (optional: a file without it loads with
     /// none).
     pub const NEAR_FIELD: [u8; 4] = *b"NEAR";
-    /// The patches' sky transfer (optional: a file without it loads with
+    /// The patches' sky visibility (optional: a file without it loads with
     /// none).
     pub const SKY: [u8; 4] = *b"SKYV";
     /// Bake report, JSON.
@@ -324,7 +324,7 @@ pub struct BakeFile {
     /// The near-field correction ([`near_field`]), in file order; written
     /// only when not empty.
     pub near_field: NearField,
-    /// The patches' sky transfer ([`sky`]), in file order; written only
+    /// The patches' sky visibility ([`sky`]), in file order; written only
     /// when not empty.
     pub sky: SkyVisibility,
     /// Free-form bake report, JSON text.
