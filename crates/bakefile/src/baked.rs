@@ -307,6 +307,9 @@ pub struct FileSummary {
     pub h_error: Option<f64>,
     pub error_lights: u64,
     pub mesh_map_vertices: u64,
+    /// The sky visibility's stored cells and its section's bytes (`None`:
+    /// the bake has none, and a sky lights nothing).
+    pub sky: Option<(u64, u64)>,
     /// The scene as stored, and where it was looked for.
     pub scene: String,
     pub scene_path: PathBuf,
@@ -369,6 +372,8 @@ pub fn describe(path: &Path) -> Result<FileSummary, LoadError> {
         h_error: b.info.h_error,
         error_lights: b.options.error_lights,
         mesh_map_vertices: b.mesh_map.len() as u64,
+        sky: (!b.sky.is_empty())
+            .then(|| (b.sky.values.len() as u64, b.sky.to_bytes().len() as u64)),
         scene: b.info.scene.clone(),
         scene_path,
         scene_status,
@@ -428,6 +433,19 @@ impl std::fmt::Display for FileSummary {
             self.bytes_index as f64 / entries,
             100.0 * self.zero_tile_fraction
         )?;
+        match self.sky {
+            Some((cells, bytes)) => writeln!(
+                f,
+                "sky visibility: {cells} sky cells stored ({:.1} per patch), {bytes} bytes \
+                 ({:.2} % of the file)",
+                cells as f64 / self.patches.max(1) as f64,
+                100.0 * bytes as f64 / self.bytes_file.max(1) as f64
+            )?,
+            None => writeln!(
+                f,
+                "sky visibility: none (a sky lights nothing: bake again with ray form factors)"
+            )?,
+        }
         match self.column_scales {
             Some((lo, hi)) => writeln!(
                 f,
