@@ -250,13 +250,18 @@ pub(crate) fn frame_table(
         Err(e) => return writeln!(out, "\nGL frame not run: {e}"),
     };
     let size = (width, height);
+    // The run time's sky, and the file's lights with the sky's sun.
+    if let Err(e) = r.set_sky(gl, rt, rt.sky()) {
+        return writeln!(out, "\nGL frame not run: {e}");
+    }
+    let lights = config.frame_lights();
     // A frame (its patch light on GL, or `H` from the CPU run time: the
     // viewer's `--patch-light cpu`), the image drawn, to `glFinish`.
     let frame_from = |r: &mut GlRenderer, cpu_h: bool| -> Result<(), crate::gl::GlError> {
         if cpu_h {
-            r.frame_with_h(gl, &config.lights, &config.emission, rt.h())?;
+            r.frame_with_h(gl, &lights, &config.emission, rt.h())?;
         } else {
-            r.frame(gl, &config.lights, &config.emission)?;
+            r.frame(gl, &lights, &config.emission)?;
         }
         r.draw(gl, &config.camera, View::Final, size, &config.emission)?;
         // SAFETY: waits for the GPU on the current context.
@@ -268,14 +273,26 @@ pub(crate) fn frame_table(
         return writeln!(out, "\nGL frame failed: {e}");
     }
     let passes = r.pass_times(gl, true);
+    // The sky's cost: the same frame without it (its sun kept: a light),
+    // and what a change of sky costs (`D_sky` and the background table).
+    let sky_cost = match rt.sky() {
+        None => None,
+        Some(sky) => {
+            let _ = r.set_sky(gl, rt, None);
+            let (_, without) = best(repeat, || frame_from(&mut r, false));
+            let t0 = std::time::Instant::now();
+            let _ = r.set_sky(gl, rt, Some(sky));
+            Some((without, t0.elapsed().as_secs_f64()))
+        }
+    };
     r.options.skip_columns = false;
     let (_, t_all) = best(repeat, || frame_from(&mut r, false));
     let passes_all = r.pass_times(gl, true);
     r.options.skip_columns = true;
     r.options.cache = true;
-    let _ = r.frame(gl, &config.lights, &config.emission);
+    let _ = r.frame(gl, &lights, &config.emission);
     let (_, t_unchanged) = best(repeat, || {
-        let _ = r.frame(gl, &config.lights, &config.emission);
+        let _ = r.frame(gl, &lights, &config.emission);
     });
     // `H` from the CPU run time (its frame timed above), uploaded.
     r.options.cache = false;
@@ -324,6 +341,16 @@ pub(crate) fn frame_table(
         "| unchanged frame (nothing runs) | {:.4} ms | | |",
         1e3 * t_unchanged
     )?;
+    if let (Some((without, t_set)), Some(sky)) = (sky_cost, rt.sky()) {
+        writeln!(
+            out,
+            "| the sky ({}): the frame above less the frame without it | +{:.3} ms (of {:.3} ms without) | | a change of sky (`D_sky` on the CPU, the background table): {:.2} ms |",
+            sky.kind(),
+            1e3 * (t_frame - without),
+            1e3 * without,
+            1e3 * t_set
+        )?;
+    }
     // The images against the CPU renderer's (the reference: one ray per
     // pixel centre, its own H), textures filtered alike.
     r.options.mipmaps = false;
@@ -331,7 +358,7 @@ pub(crate) fn frame_table(
     let mut diffs = Vec::new();
     for view in [View::Final, View::Indirect] {
         let gpu = r
-            .frame(gl, &config.lights, &config.emission)
+            .frame(gl, &lights, &config.emission)
             .and_then(|_| r.render(gl, &config.camera, view, size, &config.emission));
         match gpu {
             Ok(gpu) => {

@@ -131,7 +131,11 @@ impl SkyRig {
     /// `lights` and the shown sky's sun, if it has one above the horizon.
     pub fn frame_lights(&self, lights: &[Light]) -> Vec<Light> {
         let mut all = lights.to_vec();
-        all.extend(self.current().and_then(|s| s.sun()));
+        all.extend(
+            self.current()
+                .and_then(|s| s.sun())
+                .map(crate::core::scene_config::sun_light),
+        );
         all
     }
 

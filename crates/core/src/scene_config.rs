@@ -359,7 +359,7 @@ impl SceneConfig {
     /// it has one ([`crate::sky::Sky::sun`]).
     pub fn frame_lights(&self) -> Vec<Light> {
         let mut lights = self.lights.clone();
-        lights.extend(self.sky.as_ref().and_then(|s| s.sun()));
+        lights.extend(self.sky.as_ref().and_then(|s| s.sun()).map(sun_light));
         lights
     }
 
@@ -392,4 +392,12 @@ pub fn load(path: &Path) -> Result<SceneConfig, ConfigError> {
         source,
     })?;
     SceneConfig::from_json(&text, path)
+}
+
+/// A sky's sun as the directional light it is.
+pub fn sun_light(sun: crate::sky::Sun) -> Light {
+    Light::Directional {
+        direction: sun.direction,
+        irradiance: sun.irradiance,
+    }
 }

@@ -22,7 +22,6 @@
 //! measured) and each patch's baked visibility: `D_sky = Σ_c L̄_c T_c`.
 
 use crate::error::InvalidField;
-use crate::scene_config::Light;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -65,6 +64,15 @@ pub enum Sky {
 
 fn one() -> f32 {
     1.0
+}
+
+/// A sun and sky's sun ([`Sky::sun`]): the fields of a directional light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sun {
+    /// The direction the light travels (from the sun into the scene).
+    pub direction: [f32; 3],
+    /// W/m² on a surface facing the sun.
+    pub irradiance: [f32; 3],
 }
 
 impl Sky {
@@ -131,10 +139,11 @@ impl Sky {
         }
     }
 
-    /// The sky's sun, a directional light, for a `sunsky` with its sun
-    /// above the horizon: the frames light the scene with it beside their
-    /// own lights ([`crate::scene_config::SceneConfig::frame_lights`]).
-    pub fn sun(&self) -> Option<Light> {
+    /// The sky's sun, for a `sunsky` with its sun above the horizon: a
+    /// directional light's direction of travel (away from the sun) and
+    /// irradiance, which the frames light the scene with beside their own
+    /// lights ([`crate::scene_config::SceneConfig::frame_lights`]).
+    pub fn sun(&self) -> Option<Sun> {
         let Sky::Sunsky {
             sun_direction,
             turbidity,
@@ -147,7 +156,7 @@ impl Sky {
         let e = p
             .sun_irradiance()
             .map(|v| (v * f64::from(*intensity)) as f32);
-        (e != [0.0; 3]).then(|| Light::Directional {
+        (e != [0.0; 3]).then(|| Sun {
             direction: sun_direction.map(|v| -v),
             irradiance: e,
         })
