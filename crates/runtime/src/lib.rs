@@ -471,10 +471,12 @@ impl Runtime {
             ));
         }
 
-        // The sky: `D_sky` from the baked transfer, `ρ ∘ D_sky` gathered
+        // The sky: `D_sky` from the baked visibility, `ρ ∘ D_sky` gathered
         // like a light's `B0`; no term without a sky. No near-field
-        // correction: the transfer is per patch, with no per-point values
-        // for the correction to redistribute.
+        // correction: the visibility is per patch, and the correction
+        // redistributes a light's variation among a patch's points (its
+        // weights sum to 0 over them: with every point at the patch's
+        // `D_sky` it was measured at 1e-9 of `H` on Sponza).
         let sky_ok = cache
             && match (&self.sky, &self.sky_term) {
                 (None, None) => true,
