@@ -57,8 +57,7 @@ pub fn reference(
     options: &ReferenceOptions,
     progress: &mut dyn FnMut(&str),
 ) -> anyhow::Result<SceneImages> {
-    let stem = obj.file_stem().unwrap_or_default().to_string_lossy();
-    let dir = options.dir.join(stem.as_ref());
+    let dir = options.dir.join(scene_label(obj, camera_lights));
     if !dir.join("meta.json").exists() {
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/mitsuba-reference");
         progress(&format!(
@@ -101,6 +100,25 @@ pub fn reference(
         albedo: None,
         direct: None,
     })
+}
+
+/// A scene's name in the benchmarks' reports, reference folders and image
+/// files: the OBJ's stem, and the camera-and-lights file's after a `+`
+/// when that is not the OBJ's own `STEM.json` — so that one scene under two
+/// lightings (Sponza's sun, Sponza's sun and sky) never shares a reference.
+pub fn scene_label(obj: &Path, camera_lights: &Path) -> String {
+    let stem = |p: &Path| {
+        p.file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned()
+    };
+    let (o, l) = (stem(obj), stem(camera_lights));
+    if o == l {
+        o
+    } else {
+        format!("{o}+{l}")
+    }
 }
 
 /// Errors of one point's final and indirect views (the runtime's last
@@ -189,4 +207,21 @@ pub fn comparison_png(
         .save(path)
         .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One scene under two lightings gets two names (two reference
+    /// folders); a scene with its own `STEM.json` keeps its stem.
+    #[test]
+    fn a_scene_under_another_lighting_has_its_own_label() {
+        let obj = Path::new("scenes/sponza/sponza.obj");
+        assert_eq!(scene_label(obj, Path::new("x/sponza.json")), "sponza");
+        assert_eq!(
+            scene_label(obj, Path::new("x/sponza_noon.json")),
+            "sponza+sponza_noon"
+        );
+    }
 }

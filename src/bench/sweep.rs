@@ -187,11 +187,7 @@ fn point(
         .and_then(|p| std::fs::metadata(p).ok())
         .map_or(0, |m| m.len());
     let report = &output.report;
-    let name = s
-        .obj
-        .file_stem()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
+    let name = super::images::scene_label(&s.obj, &s.camera_lights);
     let baked = Baked::from_file(&output.file, &name)?;
     let scene = scene::load(&s.obj)?;
     let n = baked.patches.len();
@@ -417,12 +413,7 @@ pub fn run(
                 variants.push(("reorder".into(), c));
             }
             for (k, (varied, mut cfg)) in variants.into_iter().enumerate() {
-                let stem = s
-                    .obj
-                    .file_stem()
-                    .unwrap_or_default()
-                    .to_string_lossy()
-                    .into_owned();
+                let stem = super::images::scene_label(&s.obj, &s.camera_lights);
                 cfg.output = Some(bakes.join(format!("{stem}-{patches}-{k}.rad")));
                 progress(&format!("{stem}, {patches} patches, {varied} ({})", k + 1));
                 let p = point(s, &config, patches, &varied, cfg, options, images.as_mut())

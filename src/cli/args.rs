@@ -551,7 +551,8 @@ pub(crate) struct SweepArgs {
     pub(crate) quick: bool,
     /// Scenes: SCENE.obj (camera and lights in SCENE.json beside it) or
     /// SCENE.obj=LIGHTS.json (default: the Cornell box, the interior,
-    /// and ../shared/scenes/sponza/sponza.obj when present).
+    /// and ../shared/scenes/sponza/sponza.obj when present, under its sun and under the
+    /// sun and sky of scenes/external/sponza_noon.json).
     #[arg(long, value_delimiter = ',')]
     pub(crate) scenes: Vec<String>,
     /// Patch counts (default 500,2000,4000).

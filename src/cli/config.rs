@@ -645,6 +645,8 @@ fn sweep(a: SweepArgs) -> anyhow::Result<SweepOptions> {
             scenes.push(bundled("cornell_box")?);
             scenes.push(bundled("interior")?);
             scenes.extend(sponza_scene());
+            // And under the sun and sky (issue 43).
+            scenes.extend(sponza_lit_by("sponza_noon.json"));
         } else {
             for s in &a.scenes {
                 scenes.push(bench_scene(s)?);
@@ -818,12 +820,18 @@ fn bench_scene(s: &str) -> anyhow::Result<SweepScene> {
 
 /// Sponza by path with its camera and lights, when present.
 fn sponza_scene() -> Option<SweepScene> {
+    sponza_lit_by("sponza.json")
+}
+
+/// Sponza by path with the camera and lights `external/NAME` of the
+/// bundled scenes, when present.
+fn sponza_lit_by(name: &str) -> Option<SweepScene> {
     let sponza = PathBuf::from("../shared/scenes/sponza/sponza.obj");
     let lights = bundled_scene_path("cornell_box")
         .ok()?
         .parent()
         .and_then(|p| p.parent())
-        .map(|p| p.join("external").join("sponza.json"))?;
+        .map(|p| p.join("external").join(name))?;
     sponza.exists().then_some(SweepScene {
         obj: sponza,
         camera_lights: lights,
