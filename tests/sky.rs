@@ -294,7 +294,7 @@ fn sky_difference(baked: &Baked, a: &Sky, b: &Sky) -> f64 {
 /// model's irradiance times the intensity.
 #[test]
 fn the_sun_and_sky_is_within_a_few_percent_of_brute_force() {
-    use radiosity::core::scene_config::{Camera, Light, SceneConfig};
+    use radiosity::core::scene_config::Light;
     use radiosity::core::sky::preetham::Preetham;
     let (baked, _) = bake("sky-sunsky", &unit_box(true), FormFactorMethod::Rays);
     let dir = [0.5f32, 0.7, -0.3];
@@ -308,22 +308,17 @@ fn the_sun_and_sky_is_within_a_few_percent_of_brute_force() {
         "sun and sky (cells) against brute force, floor of the open box: relative RMS {rel:.4}"
     );
     assert!(rel < 0.03, "relative RMS {rel}");
-    let config = SceneConfig {
-        camera: Camera {
-            position: [0.5, 0.5, 0.5],
-            target: [0.5, 0.0, 0.5],
-            up: [0.0, 0.0, 1.0],
-            fov_y_deg: 60.0,
-        },
-        lights: vec![Light::Point {
+    let config = looking_at(
+        [0.5, 0.5, 0.5],
+        [0.5, 0.0, 0.5],
+        [0.0, 0.0, 1.0],
+        60.0,
+        vec![Light::Point {
             position: [0.5, 0.5, 0.5],
             intensity: [1.0; 3],
         }],
-        units: "m".into(),
-        description: String::new(),
-        emission: BTreeMap::new(),
-        sky: Some(sky),
-    };
+        Some(sky),
+    );
     let lights = config.frame_lights();
     assert_eq!(lights.len(), 2);
     assert_eq!(lights[0], config.lights[0]);
@@ -548,7 +543,6 @@ fn direct_sky_on_pixels_follows_the_opening_at_patch_resolution() {
 /// none counts as covered (so the sky does not set the exposure).
 #[test]
 fn the_sky_is_seen_where_camera_rays_leave_the_scene() {
-    use radiosity::core::scene_config::{Camera, SceneConfig};
     use radiosity::runtime::render::{render, View};
     use radiosity::runtime::texture::Albedo;
     let mut rt = runtime(bake("sky-seen", &unit_box(true), FormFactorMethod::Rays));
@@ -556,19 +550,14 @@ fn the_sky_is_seen_where_camera_rays_leave_the_scene() {
     let sky = Sky::Uniform { radiance: l };
     rt.set_sky(Some(sky.clone())).unwrap();
     rt.frame(&[], &BTreeMap::new());
-    let config = SceneConfig {
-        camera: Camera {
-            position: [0.5, 0.5, 0.5],
-            target: [0.5, 2.0, 0.5],
-            up: [0.0, 0.0, 1.0],
-            fov_y_deg: 60.0,
-        },
-        lights: Vec::new(),
-        units: "m".into(),
-        description: String::new(),
-        emission: BTreeMap::new(),
-        sky: Some(sky),
-    };
+    let config = looking_at(
+        [0.5, 0.5, 0.5],
+        [0.5, 2.0, 0.5],
+        [0.0, 0.0, 1.0],
+        60.0,
+        Vec::new(),
+        Some(sky),
+    );
     let albedo = Albedo::new(&rt.scene);
     for view in [View::Final, View::Direct] {
         let (img, _) = render(&rt, &config, view, 32, 24, &albedo);
@@ -643,7 +632,6 @@ fn render_takes_the_sky_from_the_camera_and_lights_file() {
 /// a bake without sky visibility is refused on GL as on the CPU.
 #[test]
 fn gl_draws_the_sky_as_the_cpu_renderer_does() {
-    use radiosity::core::scene_config::{Camera, SceneConfig};
     use radiosity::gl::context::Headless;
     use radiosity::gl::renderer::{GlOptions, GlRenderer};
     use radiosity::runtime::render::{render, View};
@@ -658,19 +646,14 @@ fn gl_draws_the_sky_as_the_cpu_renderer_does() {
         turbidity: 3.0,
         intensity: 0.02,
     };
-    let config = SceneConfig {
-        camera: Camera {
-            position: [0.5, 0.25, 0.15],
-            target: [0.5, 1.3, 0.95],
-            up: [0.0, 1.0, 0.0],
-            fov_y_deg: 70.0,
-        },
-        lights: Vec::new(),
-        units: "m".into(),
-        description: String::new(),
-        emission: BTreeMap::new(),
-        sky: Some(sky.clone()),
-    };
+    let config = looking_at(
+        [0.5, 0.25, 0.15],
+        [0.5, 1.3, 0.95],
+        [0.0, 1.0, 0.0],
+        70.0,
+        Vec::new(),
+        Some(sky.clone()),
+    );
     let lights = config.frame_lights();
     assert_eq!(lights.len(), 1, "the sky's sun");
     rt.set_sky(Some(sky.clone())).unwrap();
@@ -726,25 +709,19 @@ fn gl_draws_the_sky_as_the_cpu_renderer_does() {
 /// term is what the figures check.
 #[test]
 fn bench_accuracy_compares_the_sky_with_the_path_tracer() {
-    use radiosity::core::scene_config::{Camera, SceneConfig};
     let (_, obj) = bake("sky-accuracy", &unit_box(true), FormFactorMethod::Rays);
-    let config = SceneConfig {
-        camera: Camera {
-            position: [0.5, 0.5, 0.5],
-            target: [0.5, 0.0, 0.5],
-            up: [0.0, 0.0, 1.0],
-            fov_y_deg: 60.0,
-        },
-        lights: Vec::new(),
-        units: "m".into(),
-        description: String::new(),
-        emission: BTreeMap::new(),
-        sky: Some(Sky::Sunsky {
+    let config = looking_at(
+        [0.5, 0.5, 0.5],
+        [0.5, 0.0, 0.5],
+        [0.0, 0.0, 1.0],
+        60.0,
+        Vec::new(),
+        Some(Sky::Sunsky {
             sun_direction: [0.3, 1.0, 0.2],
             turbidity: 3.0,
             intensity: 0.1,
         }),
-    };
+    );
     let (report, text) = radiosity::bench::accuracy::run(
         &obj.with_file_name("scene.rad"),
         &config,
@@ -759,4 +736,30 @@ fn bench_accuracy_compares_the_sky_with_the_path_tracer() {
     let sky = report.sky.expect("a sky comparison");
     assert!(sky.rel_rms < 0.05, "{sky:?}");
     assert!(report.total.rel_rms < 0.10, "{:?}", report.total);
+}
+
+/// A camera-and-lights file in metres: the camera at `position` looking at
+/// `target` (`up`, `fov` degrees), `lights` and `sky`.
+fn looking_at(
+    position: [f32; 3],
+    target: [f32; 3],
+    up: [f32; 3],
+    fov: f32,
+    lights: Vec<radiosity::core::scene_config::Light>,
+    sky: Option<Sky>,
+) -> radiosity::core::scene_config::SceneConfig {
+    use radiosity::core::scene_config::{Camera, SceneConfig};
+    SceneConfig {
+        camera: Camera {
+            position,
+            target,
+            up,
+            fov_y_deg: fov,
+        },
+        lights,
+        units: "m".into(),
+        description: String::new(),
+        emission: BTreeMap::new(),
+        sky,
+    }
 }

@@ -20,6 +20,19 @@ fn cornell(tag: &str) -> (PathBuf, PathBuf) {
     (obj, dir)
 }
 
+/// The small window and bake of the key tests: 160 × 120, 800 patches,
+/// shadow maps of 512².
+const SMALL: [&str; 8] = [
+    "--width",
+    "160",
+    "--height",
+    "120",
+    "--patches",
+    "800",
+    "--shadow-resolution",
+    "512",
+];
+
 fn radiosity(dir: &Path, args: &[&str], display: bool) -> Output {
     let exe = env!("CARGO_BIN_EXE_radiosity");
     let mut c = if display {
@@ -64,6 +77,37 @@ fn difference(a: &image::RgbImage, b: &image::RgbImage) -> (i32, f64) {
 /// shared ones such as the image size), concatenated.
 fn run(dir: &Path, parts: &[&[&str]], display: bool) -> Output {
     radiosity(dir, &parts.concat(), display)
+}
+
+/// The camera and lights the window saved (`saved`), drawn headless at
+/// `exposure` into `saved.png`, against the window's screenshot
+/// (`shot.png`): equal up to two GL contexts' rounding (1/255). Returns
+/// the screenshot.
+fn window_is_the_saved_file(
+    dir: &Path,
+    obj: &str,
+    saved: &Path,
+    exposure: &str,
+) -> image::RgbImage {
+    let out = dir.join("saved.png");
+    let o = run(
+        dir,
+        &[
+            &["render", obj, "--backend", "gl", "--exposure", exposure][..],
+            &["--camera-lights", saved.to_str().unwrap()][..],
+            &["-o", out.to_str().unwrap()][..],
+            &SMALL[..],
+        ],
+        false,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (shot, drawn) = (rgb(&dir.join("shot.png")), rgb(&out));
+    let (worst, mean) = difference(&shot, &drawn);
+    assert!(
+        worst <= 1,
+        "the window's last frame differs by {worst} / 255 (mean {mean})"
+    );
+    shot
 }
 
 fn rgb(path: &Path) -> image::RgbImage {
@@ -278,16 +322,7 @@ fn without_a_display_the_viewer_says_so_or_renders_headless() {
 fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
     let (obj, dir) = cornell("viewer-keys");
     let obj_s = obj.to_str().unwrap();
-    let size = [
-        "--width",
-        "160",
-        "--height",
-        "120",
-        "--patches",
-        "800",
-        "--shadow-resolution",
-        "512",
-    ];
+    let size = SMALL;
     let png = |name: &str| dir.join(name).to_str().unwrap().to_string();
     // The box as bundled, and the exposure the renderer picks for it: the
     // window's later frames keep one exposure, so both sides use this one.
@@ -396,36 +431,8 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
     }
     // The saved lights drawn headless at the same exposure: the window's
     // last frame, up to two GL contexts' rounding (as the first test).
-    let o = run(
-        &dir,
-        &[
-            &[
-                "render",
-                obj_s,
-                "--backend",
-                "gl",
-                "--camera-lights",
-                saved.to_str().unwrap(),
-                "--exposure",
-                &exposure,
-                "-o",
-                &png("saved.png"),
-            ][..],
-            &size[..],
-        ],
-        false,
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (shot, drawn, base) = (
-        rgb(&dir.join("shot.png")),
-        rgb(&dir.join("saved.png")),
-        rgb(&dir.join("base.png")),
-    );
-    let (worst, _) = difference(&shot, &drawn);
-    assert!(
-        worst <= 1,
-        "the window's last frame differs by {worst} / 255"
-    );
+    let shot = window_is_the_saved_file(&dir, obj_s, &saved, &exposure);
+    let base = rgb(&dir.join("base.png"));
     // And the added spot shows: the picture is brighter than the box's own.
     let mean = |i: &image::RgbImage| i.pixels().map(|p| p[1] as f64).sum::<f64>() / 19200.0;
     assert!(
@@ -549,16 +556,7 @@ fn a_light_beyond_the_shadow_budget_is_taken_back_and_the_session_goes_on() {
 fn sky_keys_cycle_skies_and_move_the_sun_and_the_window_draws_it() {
     let (obj, dir) = cornell("viewer-sky");
     let obj_s = obj.to_str().unwrap();
-    let size = [
-        "--width",
-        "160",
-        "--height",
-        "120",
-        "--patches",
-        "800",
-        "--shadow-resolution",
-        "512",
-    ];
+    let size = SMALL;
     let png = |name: &str| dir.join(name).to_str().unwrap().to_string();
     let saved = dir.join("saved.json");
     let o = run(
@@ -600,32 +598,7 @@ fn sky_keys_cycle_skies_and_move_the_sun_and_the_window_draws_it() {
         }
         s => panic!("Y shows the sun and sky, saved {s:?}"),
     }
-    let o = run(
-        &dir,
-        &[
-            &[
-                "render",
-                obj_s,
-                "--backend",
-                "gl",
-                "--camera-lights",
-                saved.to_str().unwrap(),
-                "--exposure",
-                "1",
-                "-o",
-                &png("saved.png"),
-            ][..],
-            &size[..],
-        ],
-        false,
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let (shot, drawn) = (rgb(&dir.join("shot.png")), rgb(&dir.join("saved.png")));
-    let (worst, mean) = difference(&shot, &drawn);
-    assert!(
-        worst <= 1,
-        "the window's last frame differs by {worst} / 255 (mean {mean})"
-    );
+    let shot = window_is_the_saved_file(&dir, obj_s, &saved, "1");
     // And the sky shows: the box without it, at the same exposure, is far
     // darker.
     let o = run(

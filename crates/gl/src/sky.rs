@@ -15,7 +15,7 @@
 //!   table's interpolation is the difference (tests/gl_render.rs bounds
 //!   it).
 
-use super::{bytes_of, compile_program, fill_buffer, storage_buffer, GlError, Stage};
+use super::{bytes_of, fill_buffer, storage_buffer, GlError};
 use glam::Mat4;
 use glow::HasContext;
 use radiosity_core::sky::{envmap, Sky};
@@ -23,7 +23,6 @@ use radiosity_runtime::sky::NoSkyVisibility;
 use radiosity_runtime::Runtime;
 use rayon::prelude::*;
 
-pub const VERTEX: &str = include_str!("../glsl/fullscreen.vert");
 pub const FRAGMENT: &str = include_str!("../glsl/sky.frag");
 
 /// The shading pass's binding of `D_sky` (3 n floats, channel-major).
@@ -46,22 +45,7 @@ pub struct GlSky {
 
 impl GlSky {
     pub fn new(gl: &glow::Context, n: usize) -> Result<GlSky, GlError> {
-        let program = compile_program(
-            gl,
-            &[
-                Stage {
-                    kind: glow::VERTEX_SHADER,
-                    name: "fullscreen.vert",
-                    sources: &[VERTEX],
-                },
-                Stage {
-                    kind: glow::FRAGMENT_SHADER,
-                    name: "sky.frag",
-                    sources: &[FRAGMENT],
-                },
-            ],
-            &[],
-        )?;
+        let program = super::tonemap::fullscreen_program(gl, "sky.frag", FRAGMENT)?;
         // SAFETY: object creation on the current context.
         let (vao, table) = unsafe {
             let vao = gl.create_vertex_array().map_err(GlError::Call)?;

@@ -17,24 +17,34 @@ pub struct Tonemap {
     vao: glow::VertexArray,
 }
 
+/// A full-screen pass's program: `fullscreen.vert` (one triangle over the
+/// viewport) with the fragment shader `source` (`name` for messages).
+pub(crate) fn fullscreen_program(
+    gl: &glow::Context,
+    name: &str,
+    source: &str,
+) -> Result<glow::Program, GlError> {
+    compile_program(
+        gl,
+        &[
+            Stage {
+                kind: glow::VERTEX_SHADER,
+                name: "fullscreen.vert",
+                sources: &[VERTEX],
+            },
+            Stage {
+                kind: glow::FRAGMENT_SHADER,
+                name,
+                sources: &[source],
+            },
+        ],
+        &[],
+    )
+}
+
 impl Tonemap {
     pub fn new(gl: &glow::Context) -> Result<Tonemap, GlError> {
-        let program = compile_program(
-            gl,
-            &[
-                Stage {
-                    kind: glow::VERTEX_SHADER,
-                    name: "fullscreen.vert",
-                    sources: &[VERTEX],
-                },
-                Stage {
-                    kind: glow::FRAGMENT_SHADER,
-                    name: "tonemap.frag",
-                    sources: &[FRAGMENT],
-                },
-            ],
-            &[],
-        )?;
+        let program = fullscreen_program(gl, "tonemap.frag", FRAGMENT)?;
         // SAFETY: object creation on the current context (core profile
         // draws need a vertex array even without attributes).
         let vao = unsafe { gl.create_vertex_array() }.map_err(GlError::Call)?;
