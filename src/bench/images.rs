@@ -217,7 +217,7 @@ mod tests {
     /// folders); a scene with its own `STEM.json` keeps its stem.
     #[test]
     fn a_scene_under_another_lighting_has_its_own_label() {
-        let obj = Path::new("scenes/sponza/sponza.obj");
+        let obj = Path::new("elsewhere/sponza.obj");
         assert_eq!(scene_label(obj, Path::new("x/sponza.json")), "sponza");
         assert_eq!(
             scene_label(obj, Path::new("x/sponza_noon.json")),
