@@ -263,9 +263,11 @@ fn timed_stage<T>(
     if let Some(sp) = sp {
         sp.finish_and_clear();
     }
+    // The stages timed here all run on the host.
     stages.push(StageTime {
         stage: name,
         seconds: t.elapsed().as_secs_f64(),
+        device: report::host_threads(),
     });
     out
 }
@@ -308,6 +310,7 @@ pub fn transfer_stages(
     stages.push(StageTime {
         stage: "load",
         seconds: t.elapsed().as_secs_f64(),
+        device: report::host_threads(),
     });
     // Faces seen from both sides (wound the wrong way, or single-sided in
     // open space) given a back side (module `winding`); two-sided bakes
@@ -353,6 +356,7 @@ pub fn transfer_stages(
         stages.push(StageTime {
             stage: "winding",
             seconds: w.seconds,
+            device: report::host_threads(),
         });
         (loaded.with_back_sides_of(&w.twinned), w)
     };
@@ -363,6 +367,7 @@ pub fn transfer_stages(
     stages.push(StageTime {
         stage: "voxelize",
         seconds: t.elapsed().as_secs_f64(),
+        device: backend.device_name(),
     });
     budget::check(
         vox.patches.len(),
@@ -393,6 +398,11 @@ pub fn transfer_stages(
     stages.push(StageTime {
         stage: "form factors",
         seconds: t.elapsed().as_secs_f64(),
+        // The rays method traces on the host (issue 41 moves it).
+        device: match config.form_factor.method {
+            form_factor::FormFactorMethod::Rays => report::host_threads(),
+            form_factor::FormFactorMethod::Contour => backend.device_name(),
+        },
     });
     let facing = facing::check(&scene, &vox, &ff, config.two_sided)?;
     for w in &facing.warnings {
@@ -422,6 +432,7 @@ pub fn transfer_stages(
     stages.push(StageTime {
         stage: "transfer",
         seconds: t.elapsed().as_secs_f64(),
+        device: backend.device_name(),
     });
 
     Ok(TransferStages {

@@ -20,6 +20,14 @@ use std::path::PathBuf;
 pub struct StageTime {
     pub stage: &'static str,
     pub seconds: f64,
+    /// Where it ran: the OpenCL device's name, or the host's threads
+    /// ([`host_threads`]).
+    pub device: String,
+}
+
+/// The host as a stage's device: "CPU (N threads)".
+pub fn host_threads() -> String {
+    format!("CPU ({} threads)", rayon::current_num_threads())
 }
 
 /// The compressed matrix of a bake: the setting, its sizes and its error.
@@ -308,6 +316,19 @@ impl std::fmt::Display for BakeReport {
             write!(f, " {} {:.2} s;", s.stage, s.seconds)?;
         }
         writeln!(f, " total {total:.2} s")?;
+        // Where they ran, grouped: most stages run on the host.
+        let mut devices: Vec<(&str, Vec<&str>)> = Vec::new();
+        for s in &self.stages {
+            match devices.iter_mut().find(|(d, _)| *d == s.device) {
+                Some((_, names)) => names.push(s.stage),
+                None => devices.push((&s.device, vec![s.stage])),
+            }
+        }
+        let on: Vec<String> = devices
+            .iter()
+            .map(|(d, names)| format!("{} on {d}", names.join(", ")))
+            .collect();
+        writeln!(f, "  stages: {}", on.join("; "))?;
         writeln!(
             f,
             "  bytes per matrix entry: dense {:.4}, sparse {:.4}, total {:.4} (all 3 channels, \
