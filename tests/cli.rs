@@ -144,6 +144,22 @@ fn bake_reports_counts_and_exports_patches() {
             "export"
         ]
     );
+    // Each stage says where it ran: voxelization and transfer on the
+    // OpenCL device, the rays form factors and the rest on the host.
+    let device = |name: &str| -> String {
+        v["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|s| s["stage"] == name)
+            .and_then(|s| s["device"].as_str())
+            .unwrap()
+            .to_string()
+    };
+    assert_eq!(device("voxelize"), v["device"].as_str().unwrap());
+    assert_eq!(device("transfer"), v["device"].as_str().unwrap());
+    assert!(device("form factors").starts_with("CPU ("), "{}", device("form factors"));
+    assert!(device("encode").starts_with("CPU ("));
     assert!(v["output"].is_null(), "no -o, no file");
     assert!(v["codec"]["bytes_per_entry"].as_f64().unwrap() > 0.0);
     // The matrices, in the order of patches.csv.
