@@ -158,7 +158,11 @@ fn bake_reports_counts_and_exports_patches() {
     };
     assert_eq!(device("voxelize"), v["device"].as_str().unwrap());
     assert_eq!(device("transfer"), v["device"].as_str().unwrap());
-    assert!(device("form factors").starts_with("CPU ("), "{}", device("form factors"));
+    assert!(
+        device("form factors").starts_with("CPU ("),
+        "{}",
+        device("form factors")
+    );
     assert!(device("encode").starts_with("CPU ("));
     assert!(v["output"].is_null(), "no -o, no file");
     assert!(v["codec"]["bytes_per_entry"].as_f64().unwrap() > 0.0);

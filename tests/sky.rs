@@ -97,6 +97,23 @@ fn mean_over(x: f64, z: f64, h: f64, f: impl Fn(f64, f64) -> f64) -> f64 {
     s / (k * k) as f64
 }
 
+/// The unit box open at the top, baked once with ray form factors for
+/// every test that only reads it: the bake, and the scene's path with
+/// `scene.rad` beside it.
+fn open_box() -> (Baked, PathBuf) {
+    static BAKE: std::sync::OnceLock<(Baked, PathBuf)> = std::sync::OnceLock::new();
+    BAKE.get_or_init(|| bake("sky-open-box", &unit_box(true), FormFactorMethod::Rays))
+        .clone()
+}
+
+/// [`open_box`] baked by the contour method, which casts no rays: no sky
+/// visibility.
+fn open_box_contour() -> (Baked, PathBuf) {
+    static BAKE: std::sync::OnceLock<(Baked, PathBuf)> = std::sync::OnceLock::new();
+    BAKE.get_or_init(|| bake("sky-contour", &unit_box(true), FormFactorMethod::Contour))
+        .clone()
+}
+
 fn runtime((baked, obj): (Baked, PathBuf)) -> Runtime {
     Runtime::new(baked, scene::load(&obj).unwrap(), RuntimeOptions::default())
 }
@@ -109,7 +126,7 @@ fn runtime((baked, obj): (Baked, PathBuf)) -> Runtime {
 /// (quasi-random rays do better), so 4 of those bound it.
 #[test]
 fn a_floor_in_an_open_box_sees_the_sky_through_the_opening() {
-    let (baked, _) = bake("sky-open-box", &unit_box(true), FormFactorMethod::Rays);
+    let (baked, _) = open_box();
     let rays = baked.sky.rays as f64;
     assert_eq!(rays, 16384.0, "the form factors' rays per patch");
     let l = [1.0f32, 2.0, 3.0];
@@ -160,7 +177,7 @@ fn a_closed_room_gets_nothing_from_the_sky() {
 /// dark frame again.
 #[test]
 fn the_sky_is_bounced_by_the_gather_and_taken_back() {
-    let mut rt = runtime(bake("sky-bounce", &unit_box(true), FormFactorMethod::Rays));
+    let mut rt = runtime(open_box());
     let n = rt.baked.patches.len();
     let t = rt.baked.matrix.decode();
     let sky = Sky::Gradient {
@@ -214,7 +231,7 @@ fn the_sky_is_bounced_by_the_gather_and_taken_back() {
 /// of the noise.
 #[test]
 fn the_sky_cells_follow_a_gradient_sky_within_a_few_percent_of_brute_force() {
-    let (baked, _) = bake("sky-brute", &unit_box(true), FormFactorMethod::Rays);
+    let (baked, _) = open_box();
     let sky = Sky::Gradient {
         zenith: [0.2, 0.4, 1.0],
         horizon: [1.0, 0.9, 0.7],
@@ -296,7 +313,7 @@ fn sky_difference(baked: &Baked, a: &Sky, b: &Sky) -> f64 {
 fn the_sun_and_sky_is_within_a_few_percent_of_brute_force() {
     use radiosity::core::scene_config::Light;
     use radiosity::core::sky::preetham::Preetham;
-    let (baked, _) = bake("sky-sunsky", &unit_box(true), FormFactorMethod::Rays);
+    let (baked, _) = open_box();
     let dir = [0.5f32, 0.7, -0.3];
     let sky = Sky::Sunsky {
         sun_direction: dir,
@@ -381,7 +398,7 @@ fn write_map(sky: &Sky, w: usize, h: usize, path: &std::path::Path) {
 #[test]
 fn an_environment_map_lights_as_the_sky_it_samples() {
     use radiosity::core::scene_config::SceneConfig;
-    let (baked, obj) = bake("sky-envmap", &unit_box(true), FormFactorMethod::Rays);
+    let (baked, obj) = open_box();
     let dir = obj.parent().unwrap().to_path_buf();
     let sun = [0.6f32, 0.5, -0.2];
     let sunsky = |d: [f32; 3], k: f32| Sky::Sunsky {
@@ -480,7 +497,7 @@ fn bad_skies_are_refused_by_name() {
 /// it was.
 #[test]
 fn a_bake_without_sky_visibility_says_so() {
-    let baked = bake("sky-contour", &unit_box(true), FormFactorMethod::Contour);
+    let baked = open_box_contour();
     assert!(baked.0.sky.is_empty());
     let file = baked.0.file.clone();
     let uniform = Sky::Uniform { radiance: [1.0; 3] };
@@ -502,7 +519,7 @@ fn a_bake_without_sky_visibility_says_so() {
 #[test]
 fn direct_sky_on_pixels_follows_the_opening_at_patch_resolution() {
     use radiosity::runtime::surface;
-    let mut rt = runtime(bake("sky-pixels", &unit_box(true), FormFactorMethod::Rays));
+    let mut rt = runtime(open_box());
     let l = [1.0f32, 2.0, 3.0];
     rt.set_sky(Some(Sky::Uniform { radiance: l })).unwrap();
     rt.frame(&[], &BTreeMap::new());
@@ -545,7 +562,7 @@ fn direct_sky_on_pixels_follows_the_opening_at_patch_resolution() {
 fn the_sky_is_seen_where_camera_rays_leave_the_scene() {
     use radiosity::runtime::render::{render, View};
     use radiosity::runtime::texture::Albedo;
-    let mut rt = runtime(bake("sky-seen", &unit_box(true), FormFactorMethod::Rays));
+    let mut rt = runtime(open_box());
     let l = [0.25f32, 0.5, 1.0];
     let sky = Sky::Uniform { radiance: l };
     rt.set_sky(Some(sky.clone())).unwrap();
@@ -597,7 +614,7 @@ fn render_takes_the_sky_from_the_camera_and_lights_file() {
         "lights": [], "units": "m",
         "sky": {"type": "uniform", "radiance": [0.25, 0.5, 1.0]}
     }"#;
-    let (_, obj) = bake("sky-cli", &unit_box(true), FormFactorMethod::Rays);
+    let (_, obj) = open_box();
     let json = obj.with_file_name("sky.json");
     std::fs::write(&json, json_text).unwrap();
     let (img, err) = run(&obj.with_file_name("scene.rad"), &json, "sky-cli-out");
@@ -609,7 +626,7 @@ fn render_takes_the_sky_from_the_camera_and_lights_file() {
         img.pixels[0]
     );
     // Without sky visibility: said, and drawn without the sky.
-    let (_, obj) = bake("sky-cli-old", &unit_box(true), FormFactorMethod::Contour);
+    let (_, obj) = open_box_contour();
     let json = obj.with_file_name("sky.json");
     std::fs::write(&json, json_text).unwrap();
     let (img, err) = run(&obj.with_file_name("scene.rad"), &json, "sky-cli-old-out");
@@ -640,7 +657,7 @@ fn gl_draws_the_sky_as_the_cpu_renderer_does() {
         panic!("no headless OpenGL 4.5 (EGL on Mesa llvmpipe: run scripts/setup): {e}")
     });
     let gl = &ctx.gl;
-    let mut rt = runtime(bake("sky-gl", &unit_box(true), FormFactorMethod::Rays));
+    let mut rt = runtime(open_box());
     let sky = Sky::Sunsky {
         sun_direction: [0.4, 1.0, 0.5],
         turbidity: 3.0,
@@ -709,7 +726,7 @@ fn gl_draws_the_sky_as_the_cpu_renderer_does() {
 /// term is what the figures check.
 #[test]
 fn bench_accuracy_compares_the_sky_with_the_path_tracer() {
-    let (_, obj) = bake("sky-accuracy", &unit_box(true), FormFactorMethod::Rays);
+    let (_, obj) = open_box();
     let config = looking_at(
         [0.5, 0.5, 0.5],
         [0.5, 0.0, 0.5],
