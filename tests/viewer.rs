@@ -79,6 +79,34 @@ fn run(dir: &Path, parts: &[&[&str]], display: bool) -> Output {
     radiosity(dir, &parts.concat(), display)
 }
 
+/// The viewer under Xvfb for `frames` frames with `keys` pressed, at a
+/// fixed `exposure`, the GL's own patch light (as `render --backend gl`
+/// computes it: the CPU's differs by a few 1/255 here,
+/// `patch_light_on_the_cpu_shows_what_the_gpu_computes`), saving to
+/// `saved` (F5) and the last frame to `shot.png`.
+fn view_with_keys(
+    dir: &Path,
+    obj: &str,
+    frames: usize,
+    keys: &str,
+    saved: &Path,
+    exposure: &str,
+) -> Output {
+    let shot = dir.join("shot.png");
+    let frames = frames.to_string();
+    run(
+        dir,
+        &[
+            &["view", obj, "--frames", &frames, "--keys", keys][..],
+            &["--patch-light", "gpu", "--exposure", exposure][..],
+            &["--save-to", saved.to_str().unwrap()][..],
+            &["--screenshot", shot.to_str().unwrap()][..],
+            &SMALL[..],
+        ],
+        true,
+    )
+}
+
 /// The camera and lights the window saved (`saved`), drawn headless at
 /// `exposure` into `saved.png`, against the window's screenshot
 /// (`shot.png`): equal up to two GL contexts' rounding (1/255). Returns
@@ -341,31 +369,13 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
     // dimmer by 0.8; G: a sun shining ahead, also dimmed; F5 saves. 25
     // presses after frames 1–25, frame 26 shot.
     let saved = dir.join("saved.json");
-    let o = run(
+    let o = view_with_keys(
         &dir,
-        &[
-            &[
-                "view",
-                obj_s,
-                "--frames",
-                "26",
-                "--keys",
-                "KeyB,ArrowLeft*2,Minus*10,KeyG,Minus*10,F5",
-                // The GL's own patch light, as `render --backend gl`
-                // computes it (the CPU's differs by a few 1/255 here,
-                // `patch_light_on_the_cpu_shows_what_the_gpu_computes`).
-                "--patch-light",
-                "gpu",
-                "--save-to",
-                saved.to_str().unwrap(),
-                "--exposure",
-                &exposure,
-                "--screenshot",
-                &png("shot.png"),
-            ][..],
-            &size[..],
-        ],
-        true,
+        obj_s,
+        26,
+        "KeyB,ArrowLeft*2,Minus*10,KeyG,Minus*10,F5",
+        &saved,
+        &exposure,
     );
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
@@ -559,29 +569,7 @@ fn sky_keys_cycle_skies_and_move_the_sun_and_the_window_draws_it() {
     let size = SMALL;
     let png = |name: &str| dir.join(name).to_str().unwrap().to_string();
     let saved = dir.join("saved.json");
-    let o = run(
-        &dir,
-        &[
-            &[
-                "view",
-                obj_s,
-                "--frames",
-                "8",
-                "--keys",
-                "KeyY,KeyR*2,KeyO*3,F5",
-                "--patch-light",
-                "gpu",
-                "--save-to",
-                saved.to_str().unwrap(),
-                "--exposure",
-                "1",
-                "--screenshot",
-                &png("shot.png"),
-            ][..],
-            &size[..],
-        ],
-        true,
-    );
+    let o = view_with_keys(&dir, obj_s, 8, "KeyY,KeyR*2,KeyO*3,F5", &saved, "1");
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     let edited = radiosity::core::scene_config::load(&saved).unwrap();
