@@ -326,6 +326,7 @@ fn sky_xml(sky: Option<&Sky>, dir: &Path) -> Result<String, ExportError> {
         ),
         Some(sky) => {
             let (cols, rows) = sky_map_size(sky);
+            let prepared = sky.prepared();
             let texels: Vec<[f32; 3]> = (0..rows * cols)
                 .into_par_iter()
                 .map(|k| {
@@ -333,7 +334,7 @@ fn sky_xml(sky: Option<&Sky>, dir: &Path) -> Result<String, ExportError> {
                         ((k % cols) as f64 + 0.5) / cols as f64,
                         ((k / cols) as f64 + 0.5) / rows as f64,
                     );
-                    sky.radiance(envmap::direction(u, v)).map(|v| v as f32)
+                    prepared.radiance(envmap::direction(u, v)).map(|v| v as f32)
                 })
                 .collect();
             let path = dir.join("sky.pfm");

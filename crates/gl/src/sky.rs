@@ -86,6 +86,7 @@ impl GlSky {
         let flat: Vec<f32> = d.iter().flatten().copied().collect();
         fill_buffer(gl, self.d_sky, bytes_of(&flat), glow::DYNAMIC_DRAW);
         let (w, h) = TABLE;
+        let prepared = sky.prepared();
         let texels: Vec<f32> = (0..w * h)
             .into_par_iter()
             .flat_map_iter(|k| {
@@ -93,7 +94,7 @@ impl GlSky {
                     ((k % w) as f64 + 0.5) / w as f64,
                     ((k / w) as f64 + 0.5) / h as f64,
                 );
-                let l = sky.radiance(envmap::direction(u, v));
+                let l = prepared.radiance(envmap::direction(u, v));
                 [l[0] as f32, l[1] as f32, l[2] as f32, 1.0]
             })
             .collect();

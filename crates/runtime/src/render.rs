@@ -180,7 +180,8 @@ pub fn render(
     let d_sky = rt.d_sky();
     let sky = rt
         .sky()
-        .filter(|_| matches!(view, View::Final | View::Direct));
+        .filter(|_| matches!(view, View::Final | View::Direct))
+        .map(|s| s.prepared());
     let map = &rt.baked.surface_map;
     let rows: Vec<(Vec<[f32; 3]>, Vec<bool>, RenderStats)> = (0..height)
         .into_par_iter()
@@ -209,7 +210,7 @@ pub fn render(
                 }
                 let (o, d) = rays8[lane];
                 let Some((k, t)) = hits[lane] else {
-                    if let Some(sky) = sky {
+                    if let Some(sky) = &sky {
                         let l = sky.radiance(normalize(d));
                         row[px] = l.map(|v| v as f32);
                     }

@@ -77,41 +77,32 @@ pub struct Sun {
 
 impl Sky {
     /// The radiance towards the scene from direction `d` (a unit vector
-    /// pointing at the sky).
+    /// pointing at the sky). For many directions, [`Sky::prepared`] once.
     pub fn radiance(&self, d: [f64; 3]) -> [f64; 3] {
-        match self {
-            Sky::Uniform { radiance } => radiance.map(f64::from),
-            Sky::Sunsky {
-                sun_direction,
-                turbidity,
-                intensity,
-            } => preetham::Preetham::new(sun_direction.map(f64::from), f64::from(*turbidity))
-                .radiance(d)
-                .map(|v| v * f64::from(*intensity)),
-            Sky::Envmap {
-                intensity,
-                rotation_deg,
-                map,
-                ..
-            } => match map {
-                Some(m) => {
-                    // The map turned by +a: look up the direction turned by −a.
-                    let r = rotation(-f64::from(*rotation_deg));
-                    m.0.lookup(r(d)).map(|v| v * f64::from(*intensity))
-                }
-                None => [0.0; 3],
+        self.prepared().radiance(d)
+    }
+
+    /// The sky ready to evaluate in many directions: a sun and sky's model
+    /// set up for its sun once, a map's rotation once.
+    pub fn prepared(&self) -> Prepared<'_> {
+        Prepared {
+            sky: self,
+            preetham: match self {
+                Sky::Sunsky {
+                    sun_direction,
+                    turbidity,
+                    ..
+                } => Some(preetham::Preetham::new(
+                    sun_direction.map(f64::from),
+                    f64::from(*turbidity),
+                )),
+                _ => None,
             },
-            Sky::Gradient {
-                zenith,
-                horizon,
-                ground,
-            } => {
-                let s = d[1].clamp(-1.0, 1.0);
-                let (far, t) = if s >= 0.0 { (zenith, s) } else { (ground, -s) };
-                std::array::from_fn(|k| {
-                    f64::from(horizon[k]) + (f64::from(far[k]) - f64::from(horizon[k])) * t
-                })
-            }
+            // The map turned by +a: look up the direction turned by −a.
+            unrotate: match self {
+                Sky::Envmap { rotation_deg, .. } => Some(rotation(-f64::from(*rotation_deg))),
+                _ => None,
+            },
         }
     }
 
@@ -130,12 +121,15 @@ impl Sky {
             } => {
                 let r = rotation(f64::from(*rotation_deg));
                 let k = f64::from(*intensity);
-                m.0.cell_means(r)
+                m.0.cell_means(|d| r.apply(d))
                     .into_iter()
                     .map(|c| c.map(|v| v * k))
                     .collect()
             }
-            _ => cells::mean_radiance(|d| self.radiance(d)),
+            _ => {
+                let p = self.prepared();
+                cells::mean_radiance(|d| p.radiance(d))
+            }
         }
     }
 
@@ -179,10 +173,59 @@ impl Sky {
     }
 }
 
-/// Rotation by `deg` degrees about `+y`, right-handed (module doc).
-fn rotation(deg: f64) -> impl Fn([f64; 3]) -> [f64; 3] {
-    let (s, c) = deg.to_radians().sin_cos();
-    move |d| [c * d[0] + s * d[2], d[1], -s * d[0] + c * d[2]]
+/// A sky ready to evaluate ([`Sky::prepared`]).
+pub struct Prepared<'a> {
+    sky: &'a Sky,
+    preetham: Option<preetham::Preetham>,
+    unrotate: Option<Rotation>,
+}
+
+impl Prepared<'_> {
+    /// [`Sky::radiance`].
+    pub fn radiance(&self, d: [f64; 3]) -> [f64; 3] {
+        match self.sky {
+            Sky::Uniform { radiance } => radiance.map(f64::from),
+            Sky::Sunsky { intensity, .. } => match &self.preetham {
+                Some(p) => p.radiance(d).map(|v| v * f64::from(*intensity)),
+                None => [0.0; 3],
+            },
+            Sky::Envmap { intensity, map, .. } => match (map, &self.unrotate) {
+                (Some(m), Some(r)) => m.0.lookup(r.apply(d)).map(|v| v * f64::from(*intensity)),
+                _ => [0.0; 3],
+            },
+            Sky::Gradient {
+                zenith,
+                horizon,
+                ground,
+            } => {
+                let s = d[1].clamp(-1.0, 1.0);
+                let (far, t) = if s >= 0.0 { (zenith, s) } else { (ground, -s) };
+                std::array::from_fn(|k| {
+                    f64::from(horizon[k]) + (f64::from(far[k]) - f64::from(horizon[k])) * t
+                })
+            }
+        }
+    }
+}
+
+/// Rotation by an angle about `+y`, right-handed (module doc).
+#[derive(Clone, Copy, Debug)]
+struct Rotation {
+    sin: f64,
+    cos: f64,
+}
+
+impl Rotation {
+    fn apply(&self, d: [f64; 3]) -> [f64; 3] {
+        let (s, c) = (self.sin, self.cos);
+        [c * d[0] + s * d[2], d[1], -s * d[0] + c * d[2]]
+    }
+}
+
+/// Rotation by `deg` degrees about `+y` ([`Rotation`]).
+fn rotation(deg: f64) -> Rotation {
+    let (sin, cos) = deg.to_radians().sin_cos();
+    Rotation { sin, cos }
 }
 
 impl Sky {

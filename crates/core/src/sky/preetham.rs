@@ -46,18 +46,18 @@ type Perez = [f64; 5];
 pub struct Preetham {
     /// Unit vector towards the sun.
     sun: [f64; 3],
-    /// The sun's zenith angle used by the fits (at most π/2).
-    theta_s: f64,
-    /// Zenith luminance (kcd/m²) and chromaticity x, y.
-    zenith: [f64; 3],
     /// Perez coefficients of Y, x, y.
     perez: [Perez; 3],
+    /// Per quantity the zenith's value (luminance in kcd/m², chromaticity
+    /// x, y) over `F(0, θs)`, `θs` the sun's zenith angle as the fits use
+    /// it (at most π/2): the model's normalisation.
+    scale: [f64; 3],
     /// 1 with the sun above the horizon, falling to 0 over the twilight.
     fade: f64,
     turbidity: f64,
 }
 
-fn perez(c: &Perez, cos_theta: f64, gamma: f64) -> f64 {
+fn perez_f(c: &Perez, cos_theta: f64, gamma: f64) -> f64 {
     let [a, b, cc, d, e] = *c;
     let cos_g = gamma.cos();
     // cos θ = 0 at the horizon: B < 0 for every valid turbidity, so the
@@ -129,10 +129,10 @@ impl Preetham {
             ],
         ];
         let norm = 1.0 / sun.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let zenith = [y_z.max(0.0), x_z, yy_z];
         Preetham {
             sun: sun.map(|v| v * norm),
-            theta_s,
-            zenith: [y_z.max(0.0), x_z, yy_z],
+            scale: std::array::from_fn(|k| zenith[k] / perez_f(&perez[k], 1.0, theta_s)),
             perez,
             fade,
             turbidity: t,
@@ -150,10 +150,8 @@ impl Preetham {
         let cos_gamma =
             (d[0] * self.sun[0] + d[1] * self.sun[1] + d[2] * self.sun[2]).clamp(-1.0, 1.0);
         let gamma = cos_gamma.acos();
-        let v: [f64; 3] = std::array::from_fn(|k| {
-            self.zenith[k] * perez(&self.perez[k], cos_theta, gamma)
-                / perez(&self.perez[k], 1.0, self.theta_s)
-        });
+        let v: [f64; 3] =
+            std::array::from_fn(|k| self.scale[k] * perez_f(&self.perez[k], cos_theta, gamma));
         let rgb = xyy_to_rgb(v[1], v[2], v[0] * 1000.0 / LM_PER_W);
         rgb.map(|c| (c * self.fade).max(0.0))
     }
