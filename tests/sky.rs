@@ -447,7 +447,8 @@ fn an_environment_map_lights_as_the_sky_it_samples() {
 
 /// Bad skies are refused naming the field, the file or the pixel: a
 /// missing map, an unknown extension, a negative texel, a turbidity
-/// outside the model's range, a sun direction of zeros.
+/// outside the model's range, a sun direction of zeros, light beyond what
+/// the frame's f32 sums hold.
 #[test]
 fn bad_skies_are_refused_by_name() {
     use radiosity::core::scene_config::SceneConfig;
@@ -490,6 +491,25 @@ fn bad_skies_are_refused_by_name() {
     assert!(e.contains("sky.sun_direction"), "{e}");
     let e = err(r#"{"type": "envmap", "file": "neg.pfm", "intensity": -1}"#);
     assert!(e.contains("sky.intensity"), "{e}");
+    // Light beyond what the frame's f32 sums hold: a radiance, a sun and
+    // sky's intensity, a map's brightest texel times its intensity.
+    let e = err(r#"{"type": "uniform", "radiance": [3e38, 0, 0]}"#);
+    assert!(e.contains("sky.radiance") && e.contains("1e35"), "{e}");
+    let e =
+        err(r#"{"type": "sunsky", "sun_direction": [0, 1, 0], "turbidity": 3, "intensity": 1e36}"#);
+    assert!(e.contains("sky.intensity"), "{e}");
+    radiosity::runtime::tonemap::write_pfm(&dir.join("bright.pfm"), 2, 1, &[[1e30; 3], [1.0; 3]])
+        .unwrap();
+    let e = err(r#"{"type": "envmap", "file": "bright.pfm", "intensity": 1e6}"#);
+    assert!(
+        e.contains("sky.intensity") && e.contains("brightest"),
+        "{e}"
+    );
+    assert!(SceneConfig::from_json(
+        &with_sky(r#"{"type": "envmap", "file": "bright.pfm", "intensity": 1}"#),
+        &path
+    )
+    .is_ok());
 }
 
 /// A bake whose form factors cast no rays (the contour method) has no sky

@@ -351,6 +351,11 @@ impl SceneConfig {
                 path: path.to_path_buf(),
                 source,
             })?;
+            // Again with the map read: its brightness against the bound.
+            sky.validate().map_err(|invalid| ConfigError::Invalid {
+                path: path.to_path_buf(),
+                invalid,
+            })?;
         }
         Ok(config)
     }

@@ -66,6 +66,14 @@ fn one() -> f32 {
     1.0
 }
 
+/// The largest sky radiance accepted, W/(m² sr): its irradiance, `π L` at
+/// most, stays within the lights' bound (1e36,
+/// `crates/core/src/scene_config.rs`), far from f32's overflow in the
+/// frame's sums. A sun and sky's or a map's `intensity` is bounded so that
+/// the radiance it scales stays within it (the model's brightest, its sun
+/// of about 190 W/m² and a sky near it, is below 1,000 at intensity 1).
+pub const MAX_SKY_RADIANCE: f32 = 1e35;
+
 /// A sun and sky's sun ([`Sky::sun`]): the fields of a directional light.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sun {
@@ -287,14 +295,16 @@ impl Sky {
                 scalar(
                     "intensity",
                     *intensity,
-                    *intensity >= 0.0,
-                    "the intensity must be a finite number ≥ 0",
+                    *intensity >= 0.0 && *intensity <= MAX_SKY_RADIANCE / 1e3,
+                    "the intensity must be a finite number from 0 to 1e32 (beyond, the sky's \
+                     light overflows the frame's f32 sums)",
                 )?;
                 vec![]
             }
             Sky::Envmap {
                 intensity,
                 rotation_deg,
+                map,
                 ..
             } => {
                 scalar(
@@ -303,6 +313,22 @@ impl Sky {
                     *intensity >= 0.0,
                     "the intensity must be a finite number ≥ 0",
                 )?;
+                // With the map read: its brightest texel times the
+                // intensity within the bound.
+                let brightest = map.as_ref().map_or(0.0, |m| {
+                    m.0.texels.iter().flatten().fold(0.0f32, |a, &b| a.max(b))
+                });
+                if f64::from(brightest) * f64::from(*intensity) > f64::from(MAX_SKY_RADIANCE) {
+                    return Err(bad(
+                        "intensity",
+                        intensity.to_string(),
+                        &format!(
+                            "the map's brightest texel ({brightest:e}) times the intensity \
+                             exceeds 1e35 W/(m² sr): its light would overflow the frame's f32 \
+                             sums"
+                        ),
+                    ));
+                }
                 scalar(
                     "rotation_deg",
                     *rotation_deg,
@@ -313,11 +339,14 @@ impl Sky {
             }
         };
         for (name, v) in fields {
-            if !v.iter().all(|x| x.is_finite() && *x >= 0.0) {
+            if !v
+                .iter()
+                .all(|x| x.is_finite() && *x >= 0.0 && *x <= MAX_SKY_RADIANCE)
+            {
                 return Err(bad(
                     name,
                     format!("[{}, {}, {}]", v[0], v[1], v[2]),
-                    "a radiance must be three finite numbers ≥ 0 (W/(m² sr))",
+                    "a radiance must be three finite numbers from 0 to 1e35 (W/(m² sr))",
                 ));
             }
         }
