@@ -800,3 +800,27 @@ fn looking_at(
         sky,
     }
 }
+
+/// The library refuses a sky it cannot draw as it is, saying which: a map
+/// whose file was never read (it would light nothing), a sky out of range
+/// (a NaN radiance would reach every pixel); the sky stays as it was.
+#[test]
+fn the_run_time_refuses_a_map_not_read_and_an_invalid_sky() {
+    use radiosity::runtime::sky::SkyError;
+    let mut rt = runtime(open_box());
+    let unread = Sky::Envmap {
+        file: "sky.hdr".into(),
+        intensity: 1.0,
+        rotation_deg: 0.0,
+        map: None,
+    };
+    let e = rt.set_sky(Some(unread)).unwrap_err();
+    assert!(matches!(e, SkyError::NotRead { .. }), "{e}");
+    assert!(e.to_string().contains("sky.hdr"), "{e}");
+    let nan = Sky::Uniform {
+        radiance: [f32::NAN, 0.0, 0.0],
+    };
+    let e = rt.set_sky(Some(nan)).unwrap_err();
+    assert!(e.to_string().contains("sky.radiance"), "{e}");
+    assert!(rt.sky().is_none());
+}

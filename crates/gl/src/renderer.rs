@@ -490,7 +490,7 @@ impl GlRenderer {
         gl: &glow::Context,
         rt: &Runtime,
         sky: Option<&radiosity_core::sky::Sky>,
-    ) -> Result<(), radiosity_runtime::sky::NoSkyVisibility> {
+    ) -> Result<(), radiosity_runtime::sky::SkyError> {
         if self.sky.sky() == sky {
             return Ok(());
         }

@@ -19,7 +19,7 @@ use super::{bytes_of, fill_buffer, storage_buffer, GlError};
 use glam::Mat4;
 use glow::HasContext;
 use radiosity_core::sky::{envmap, Sky};
-use radiosity_runtime::sky::NoSkyVisibility;
+use radiosity_runtime::sky::SkyError;
 use radiosity_runtime::Runtime;
 use rayon::prelude::*;
 
@@ -77,7 +77,7 @@ impl GlSky {
         gl: &glow::Context,
         rt: &Runtime,
         sky: Option<&Sky>,
-    ) -> Result<(), NoSkyVisibility> {
+    ) -> Result<(), SkyError> {
         let Some(sky) = sky else {
             self.sky = None;
             return Ok(());

@@ -396,16 +396,12 @@ impl Runtime {
     }
 
     /// The sky of the next frames (`None`: black). A bake without sky
-    /// visibility cannot be lit by one: the error says so, and the sky
-    /// stays as it was.
-    pub fn set_sky(
-        &mut self,
-        sky: Option<radiosity_core::sky::Sky>,
-    ) -> Result<(), sky::NoSkyVisibility> {
-        if sky.is_some() && self.baked.sky.is_empty() {
-            return Err(sky::NoSkyVisibility {
-                file: self.baked.file.clone(),
-            });
+    /// visibility cannot be lit by one, nor can an invalid sky or a map not
+    /// read ([`sky::check`]): the error says which, and the sky stays as it
+    /// was.
+    pub fn set_sky(&mut self, sky: Option<radiosity_core::sky::Sky>) -> Result<(), sky::SkyError> {
+        if let Some(s) = &sky {
+            sky::check(&self.baked, s)?;
         }
         self.sky = sky;
         Ok(())

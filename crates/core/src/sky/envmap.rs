@@ -25,6 +25,8 @@ pub struct LatLong {
     pub texels: Vec<[f32; 3]>,
     /// The file it was read from.
     pub path: PathBuf,
+    /// The largest texel value, any channel (the sky's bound checks it).
+    pub brightest: f32,
 }
 
 /// Why a map could not be read.
@@ -113,11 +115,13 @@ pub fn load(path: &Path) -> Result<LatLong, EnvMapError> {
             value,
         });
     }
+    let brightest = texels.iter().flatten().fold(0.0f32, |a, &b| a.max(b));
     Ok(LatLong {
         width,
         height,
         texels,
         path: path.to_path_buf(),
+        brightest,
     })
 }
 
@@ -262,6 +266,7 @@ mod tests {
             height: 8,
             texels: vec![[2.0, 1.0, 0.5]; 128],
             path: PathBuf::from("test.pfm"),
+            brightest: 2.0,
         };
         for l in m.cell_means(|d| d) {
             for (k, v) in [2.0, 1.0, 0.5].iter().enumerate() {

@@ -315,9 +315,7 @@ impl Sky {
                 )?;
                 // With the map read: its brightest texel times the
                 // intensity within the bound.
-                let brightest = map.as_ref().map_or(0.0, |m| {
-                    m.0.texels.iter().flatten().fold(0.0f32, |a, &b| a.max(b))
-                });
+                let brightest = map.as_ref().map_or(0.0, |m| m.0.brightest);
                 if f64::from(brightest) * f64::from(*intensity) > f64::from(MAX_SKY_RADIANCE) {
                     return Err(bad(
                         "intensity",
