@@ -206,7 +206,16 @@ pub fn run(
                 }
             } else {
                 let m = rt.near.m;
-                let (d_points, _) = direct::irradiance(&rt.baked, &rt.direct, lights, m);
+                let (mut d_points, _) = direct::irradiance(&rt.baked, &rt.direct, lights, m);
+                // The sky's light at the points, as the frame corrects it
+                // (the correction is linear in it).
+                if let Some(sky) = rt.d_sky().and_then(|d| rt.near.sky_points(d)) {
+                    for (p, s) in d_points.iter_mut().zip(&sky) {
+                        for (a, b) in p.iter_mut().zip(s) {
+                            *a += b;
+                        }
+                    }
+                }
                 rt.near_correction(&d_points)
                     .expect("the bake has a correction")
             };

@@ -27,6 +27,9 @@ fn with_near_field() -> BakeFile {
             far: (0..5)
                 .map(|j| std::array::from_fn(|k| if k == j + 1 { 0.25 } else { 0.75 / 15.0 }))
                 .collect(),
+            sky: (0..5)
+                .map(|j| std::array::from_fn(|k| (j * 16 + k) as f32 / 80.0))
+                .collect(),
         },
         ..sample()
     }
@@ -48,6 +51,16 @@ fn near_field_round_trips_and_is_optional() {
     let read = parse(&encode(&old).unwrap()).unwrap();
     assert_eq!(read, old);
     assert_eq!(read.near_field.far_of(2), &old.near_field.shares[2]);
+    // Nor before the cells' open sky was (flag bit 1): it reads back
+    // without it, with or without far weights.
+    for far in [true, false] {
+        let mut old = bf.clone();
+        old.near_field.sky.clear();
+        if !far {
+            old.near_field.far.clear();
+        }
+        assert_eq!(parse(&encode(&old).unwrap()).unwrap(), old);
+    }
     assert_eq!(bf.near_field.far_of(2), &bf.near_field.far[2]);
     // In matrix order (the sample's permutation [2, 0, 1, 4, 3]):
     // receiver 0 is now row 1, and its neighbours 1 and 3 are 2 and 4.
@@ -117,8 +130,20 @@ fn near_field_errors_name_the_section_and_the_value() {
             "patch 3: far weights",
         ),
         (
-            Box::new(|b: &mut Vec<u8>| b[12..16].copy_from_slice(&3u32.to_le_bytes())),
-            "flags are 0x3",
+            Box::new(move |b: &mut Vec<u8>| {
+                let at = links_at + 3 * 36 + 2 * 5 * 64 + 4 * 64 + 12;
+                b[at..at + 4].copy_from_slice(&1.5f32.to_le_bytes())
+            }),
+            "patch 4: open sky fractions",
+        ),
+        (
+            Box::new(|b: &mut Vec<u8>| b[12..16].copy_from_slice(&7u32.to_le_bytes())),
+            "flags are 0x7",
+        ),
+        (
+            // Flags say no open sky fractions, but they are there.
+            Box::new(|b: &mut Vec<u8>| b[12..16].copy_from_slice(&1u32.to_le_bytes())),
+            "expected",
         ),
         (
             // Flags say no far weights, but they are there.
@@ -134,7 +159,7 @@ fn near_field_errors_name_the_section_and_the_value() {
             "link starts decrease",
         ),
     ];
-    assert_eq!(near.len(), 16 + 4 * 6 + 3 * 36 + 2 * 5 * 64);
+    assert_eq!(near.len(), 16 + 4 * 6 + 3 * 36 + 3 * 5 * 64);
     for (f, want) in cases {
         let (_, m) = reject(&with(&*f));
         assert!(m.contains("NEAR") && m.contains(want), "{want}: {m}");

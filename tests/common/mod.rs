@@ -3,6 +3,8 @@
 
 #![allow(dead_code)]
 
+pub mod open_box;
+
 use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::{self, BakeConfig, BakeOutput, CodecChoice, ComputeChoice};
 use radiosity::bakefile::baked::Baked;

@@ -16,7 +16,12 @@
 //! `min_form_factor` ([`MIN_FORM_FACTOR`] by default) are dropped, and
 //! their rays, weighted by the receiver's area per ray traced (as the form
 //! factors' rays weigh theirs, so that `A_i F̂_ij = A_j F̂_ji` holds on
-//! average), make up each neighbour's far weights.
+//! average), make up each neighbour's far weights. The same rays, counted
+//! by the cell of the receiver's own point nearest their origin, give each
+//! cell's open sky: the share of its rays that leave the scene
+//! (`NearField::sky`; about 256 rays a cell at the default, so a binomial
+//! error near 0.03 — `tests/sky_near_field.rs` checks it against the exact
+//! view factor to an opening).
 //!
 //! Noise: a link's cells hold about `F̂_ij · rays / 16` rays each; at the
 //! default 4,096 rays and `F̂ = 0.1`, about 26, so a cell's weight has a
@@ -158,9 +163,16 @@ pub fn build(
             s.map(|v| v as f32)
         })
         .collect();
-    // Per receiver: its stored links, its area per ray traced, and its
-    // dropped links' ray counts (for the far weights).
-    type Row = (Vec<NearLink>, f64, Vec<(u32, [u16; SAMPLES_PER_PATCH])>);
+    // Per receiver: its stored links, its area per ray traced, its
+    // dropped links' ray counts (for the far weights), and per cell of its
+    // own the rays cast from origins nearest that cell's point and those of
+    // them that left the scene (its open sky, `NearField::sky`).
+    type Row = (
+        Vec<NearLink>,
+        f64,
+        Vec<(u32, [u16; SAMPLES_PER_PATCH])>,
+        [[u32; SAMPLES_PER_PATCH]; 2],
+    );
     let row_of = |i: usize| -> Row {
         let v = vox_of[i];
         if v == usize::MAX {
@@ -172,15 +184,22 @@ pub fn build(
         }
         let mut links: BTreeMap<u32, [u32; SAMPLES_PER_PATCH]> = BTreeMap::new();
         let (mut f, mut covered) = (0usize, 0u32);
+        let mut open = [[0u32; SAMPLES_PER_PATCH]; 2];
         for k in 0..rays as usize {
             let (x, nrm, partial, r) = origins.point(k, rays as usize, &mut f);
             if partial.is_some_and(|tri| cover.covered(x, nrm, tri)) {
                 covered += 1;
                 continue;
             }
-            let Hit::Owned { patch, y } = tracer.trace(x, nrm, cosine_direction(nrm, r[2], r[3]))
-            else {
-                continue;
+            let own = nearest(i, x);
+            open[0][own] += 1;
+            let (patch, y) = match tracer.trace(x, nrm, cosine_direction(nrm, r[2], r[3])) {
+                Hit::Owned { patch, y } => (patch, y),
+                Hit::Escaped => {
+                    open[1][own] += 1;
+                    continue;
+                }
+                _ => continue,
             };
             let Some(j) = patch_index_of[patch as usize] else {
                 continue;
@@ -198,7 +217,7 @@ pub fn build(
             return Row::default();
         }
         let to_rays = rays as f64 / done as f64;
-        let mut row: Row = (Vec::new(), vox.patches[v].area / done as f64, Vec::new());
+        let mut row: Row = (Vec::new(), vox.patches[v].area / done as f64, Vec::new(), open);
         let min = min_form_factor * rays as f64;
         for (patch, c) in links {
             let counts: [u16; SAMPLES_PER_PATCH] =
@@ -217,12 +236,14 @@ pub fn build(
     // patch counts) are folded into the far sums and freed as they come.
     let mut stored: Vec<Vec<NearLink>> = Vec::with_capacity(n);
     let mut far_sum = vec![[0.0f64; SAMPLES_PER_PATCH]; n];
+    let mut sky: Vec<[f32; SAMPLES_PER_PATCH]> = Vec::with_capacity(n);
     for first in (0..n).step_by(RECEIVERS_PER_CHUNK) {
         let chunk: Vec<Row> = (first..(first + RECEIVERS_PER_CHUNK).min(n))
             .into_par_iter()
             .map(row_of)
             .collect();
-        for (links, per_ray, dropped) in chunk {
+        for (links, per_ray, dropped, [cast, open]) in chunk {
+            sky.push(open_fractions(&cast, &open));
             for (j, c) in dropped {
                 for (f, &v) in far_sum[j as usize].iter_mut().zip(&c) {
                     *f += v as f64 * per_ray;
@@ -251,6 +272,7 @@ pub fn build(
         links: Vec::new(),
         shares,
         far,
+        sky,
     };
     nf.starts.push(0);
     for r in stored {
@@ -266,4 +288,25 @@ pub fn build(
         seconds: start.elapsed().as_secs_f64(),
     };
     Ok((nf, stats))
+}
+
+/// A patch's open sky per cell (`NearField::sky`): the rays that left the
+/// scene over those cast from each cell's origins; a cell no origin fell
+/// in takes the patch's fraction (0 for a patch with no ray cast).
+fn open_fractions(
+    cast: &[u32; SAMPLES_PER_PATCH],
+    open: &[u32; SAMPLES_PER_PATCH],
+) -> [f32; SAMPLES_PER_PATCH] {
+    let (c, o) = (
+        cast.iter().map(|&v| u64::from(v)).sum::<u64>(),
+        open.iter().map(|&v| u64::from(v)).sum::<u64>(),
+    );
+    let patch = if c == 0 { 0.0 } else { o as f64 / c as f64 };
+    std::array::from_fn(|k| {
+        if cast[k] == 0 {
+            patch as f32
+        } else {
+            (f64::from(open[k]) / f64::from(cast[k])) as f32
+        }
+    })
 }

@@ -60,6 +60,22 @@
 //! A run time lighting fewer than [`SAMPLES_PER_PATCH`] points merges each
 //! cell into its nearest lit point ([`NearField::groups`]).
 //!
+//! **The sky.** A sky's irradiance is baked per patch (`SKYV`), so every
+//! point of a patch would get its mean and the correction, whose weights
+//! sum to zero over a patch's points, would add nothing to the sky's
+//! light; yet a floor patch by a wall sees less sky at its wall side than
+//! at its open side, as a shaded strip is dimmer than a sunlit one, and
+//! its near neighbours see those sides. So the receiver's own rays are
+//! also counted by the cell of its point nearest their origin: `o_jk`, the
+//! fraction of the rays from cell `k` of patch `j` that leave the scene
+//! (its cosine-weighted open sky; [`NearField::sky`]). The run time lights
+//! the points with `D_sky,j · o_jk / Σ_k s_jk o_jk` — the patch's sky
+//! irradiance shaped as its cells see the sky, with the same area mean —
+//! and the correction then treats the sky like any light. The direction
+//! of the sky a cell sees is the patch's (its octahedral cells): a cell
+//! by a wall to the south sees less of the southern sky only, which this
+//! scalar spreads over the whole sky.
+//!
 //! # Layout (little-endian)
 //!
 //! A 16-byte header — rays per receiver `u32`, links `m u32`, cells per
@@ -68,7 +84,9 @@
 //! `i`'s links are `starts[i]..starts[i+1]`), then `m` links of 36 bytes:
 //! the neighbour (`u32`, file order), then its 16 cell counts (`u16`); then
 //! per patch its 16 cell shares (`f32`, each ≥ 0, summing to 1); then, with
-//! flag bit 0, per patch its 16 far weights (the same rules).
+//! flag bit 0, per patch its 16 far weights (the same rules); then, with
+//! flag bit 1, per patch its 16 cells' open sky fractions (`f32`, each in
+//! 0..=1).
 
 use super::surface::{PatchSamples, SAMPLES_PER_PATCH};
 use crate::section_error::SectionError;
@@ -87,6 +105,9 @@ pub const SHARES_LEN: u64 = 4 * SAMPLES_PER_PATCH as u64;
 
 /// Header flag: far weights follow the shares.
 const FLAG_FAR: u32 = 1;
+
+/// Header flag: the cells' open sky fractions follow.
+const FLAG_SKY: u32 = 2;
 
 /// One receiver's view of one near neighbour.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -115,6 +136,10 @@ pub struct NearField {
     /// rays from receivers without a stored link spread over its cells,
     /// area-weighted (module doc).
     pub far: Vec<[f32; SAMPLES_PER_PATCH]>,
+    /// Per patch, or empty (files from before they were stored): the
+    /// fraction of the rays from each of its cells that left the scene, its
+    /// cells' open sky (module doc, "The sky").
+    pub sky: Vec<[f32; SAMPLES_PER_PATCH]>,
 }
 
 impl NearField {
@@ -149,7 +174,8 @@ impl NearField {
             self.rays,
             self.links.len() as u32,
             SAMPLES_PER_PATCH as u32,
-            if self.far.is_empty() { 0 } else { FLAG_FAR },
+            if self.far.is_empty() { 0 } else { FLAG_FAR }
+                | if self.sky.is_empty() { 0 } else { FLAG_SKY },
         ] {
             out.extend_from_slice(&v.to_le_bytes());
         }
@@ -162,7 +188,7 @@ impl NearField {
                 out.extend_from_slice(&c.to_le_bytes());
             }
         }
-        for s in self.shares.iter().chain(&self.far).flatten() {
+        for s in self.shares.iter().chain(&self.far).chain(&self.sky).flatten() {
             out.extend_from_slice(&s.to_le_bytes());
         }
         out
@@ -186,12 +212,13 @@ impl NearField {
                 "{cells} cells per link, this build reads {SAMPLES_PER_PATCH}"
             )));
         }
-        if flags & !FLAG_FAR != 0 {
+        if flags & !(FLAG_FAR | FLAG_SKY) != 0 {
             return Err(SectionError::Unsupported(format!(
-                "flags are {flags:#x}, only bit 0 is defined"
+                "flags are {flags:#x}, only bits 0 and 1 are defined"
             )));
         }
-        let per_patch = if flags & FLAG_FAR != 0 { 2 } else { 1 };
+        let (has_far, has_sky) = (flags & FLAG_FAR != 0, flags & FLAG_SKY != 0);
+        let per_patch = 1 + u64::from(has_far) + u64::from(has_sky);
         let want = (n as u64 + 1) * 4
             + m as u64 * LINK_LEN as u64
             + 16
@@ -224,8 +251,13 @@ impl NearField {
                 .collect()
         };
         let shares = per_patch_at(base);
-        let far = if per_patch == 2 {
+        let far = if has_far {
             per_patch_at(base + SHARES_LEN as usize * n)
+        } else {
+            Vec::new()
+        };
+        let sky = if has_sky {
+            per_patch_at(base + SHARES_LEN as usize * n * (1 + usize::from(has_far)))
         } else {
             Vec::new()
         };
@@ -235,6 +267,7 @@ impl NearField {
             links,
             shares,
             far,
+            sky,
         };
         nf.check(n)?;
         Ok(nf)
@@ -268,6 +301,19 @@ impl NearField {
                 "{} far weights for {n} patches",
                 self.far.len()
             )));
+        }
+        if !self.sky.is_empty() && self.sky.len() != n {
+            return Err(SectionError::Invalid(format!(
+                "{} open sky fractions for {n} patches",
+                self.sky.len()
+            )));
+        }
+        for (j, o) in self.sky.iter().enumerate() {
+            if o.iter().any(|v| !(0.0..=1.0).contains(v)) {
+                return Err(SectionError::Invalid(format!(
+                    "patch {j}: open sky fractions {o:?} are not numbers in 0..=1"
+                )));
+            }
         }
         let named = [("cell shares", &self.shares), ("far weights", &self.far)];
         for (what, rows) in named {
@@ -330,6 +376,11 @@ impl NearField {
                 Vec::new()
             } else {
                 order.iter().map(|&o| self.far[o as usize]).collect()
+            },
+            sky: if self.sky.is_empty() {
+                Vec::new()
+            } else {
+                order.iter().map(|&o| self.sky[o as usize]).collect()
             },
         };
         out.starts.push(0);

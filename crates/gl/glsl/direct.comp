@@ -25,10 +25,15 @@ layout(std430, binding = 6) buffer Active { uint tile_active[]; };     // per ti
 // D at each lit point, for the near-field correction (near_field.comp):
 // channel c, patch j, point s at c * n * samples + j * samples + s.
 layout(std430, binding = 7) writeonly buffer DPoints { float d_points[]; };
+// The sky's irradiance at the lit points (the same layout; host:
+// GlDirect::set_sky_points), added to the lights' there only: the sky's
+// patch light reaches B0 with the emission.
+layout(std430, binding = SKY_POINTS_BINDING) readonly buffer SkyPoints { float sky_points[]; };
 
 uniform uint n;
 uniform uint samples;
 uniform uint lanes; // invocations a patch: samples rounded up to a power of two
+uniform uint has_sky_points;
 
 shared vec3 point_d[64];
 
@@ -42,7 +47,10 @@ void main() {
         vec3 x = vec3(sample_position[i], sample_position[i + 1u], sample_position[i + 2u]);
         vec3 nn = vec3(sample_normal[i], sample_normal[i + 1u], sample_normal[i + 2u]);
         ds = direct_irradiance(x, nn);
-        for (uint c = 0u; c < 3u; c++) d_points[(c * n + j) * samples + s] = ds[c];
+        for (uint c = 0u; c < 3u; c++) {
+            uint at = (c * n + j) * samples + s;
+            d_points[at] = has_sky_points != 0u ? ds[c] + sky_points[at] : ds[c];
+        }
     }
     point_d[lid] = ds;
     barrier();

@@ -32,6 +32,9 @@ pub const VIEW_BINDING: usize = 15;
 const BVH_NODE_BINDING: usize = 8;
 const BVH_TRI_BINDING: usize = 9;
 const RAY_BINDING: usize = 10;
+/// Storage binding of the sky's irradiance at the lit points, added to
+/// `D` there for the near-field correction (direct.comp).
+const SKY_POINTS_BINDING: usize = 11;
 
 /// The shadow rays' parameters as shadow_ray.glsl reads them (f64): the
 /// lift `offset` along the normal, then per light its ray end — for a
@@ -60,8 +63,12 @@ pub struct GlDirect {
     program: glow::Program,
     /// Sample positions, normals, albedo, emission, `D`, `B0`, tile flags,
     /// `D` at each lit point (bindings 0..=7), the BVH's nodes and
-    /// triangles and the rays' records (bindings 8..=10).
-    pub buffers: [glow::Buffer; 11],
+    /// triangles and the rays' records (bindings 8..=10), the sky's
+    /// irradiance at the lit points (binding 11).
+    pub buffers: [glow::Buffer; 12],
+    /// Whether the sky's irradiance at the lit points is added
+    /// ([`GlDirect::set_sky_points`]).
+    sky_points: bool,
     n: usize,
     tiles: usize,
     /// The shadow rays' lift and length towards directional lights
@@ -94,6 +101,7 @@ impl GlDirect {
                 ("BVH_NODE_BINDING", BVH_NODE_BINDING),
                 ("BVH_TRI_BINDING", BVH_TRI_BINDING),
                 ("RAY_BINDING", RAY_BINDING),
+                ("SKY_POINTS_BINDING", SKY_POINTS_BINDING),
                 ("RAY_SHADOWS", 1),
             ],
         )?;
@@ -133,11 +141,13 @@ impl GlDirect {
                 bytes_of(&ray_records(&[], offset, far)),
                 glow::DYNAMIC_DRAW,
             )?,
+            storage_buffer(gl, &[0u8; 4], glow::DYNAMIC_DRAW)?,
         ];
         super::check(gl, "uploading the sample points and the scene's BVH")?;
         Ok(GlDirect {
             program,
             buffers,
+            sky_points: false,
             n,
             tiles,
             offset,
@@ -150,6 +160,16 @@ impl GlDirect {
     pub fn set_lights(&self, gl: &glow::Context, lights: &[Light]) {
         let records = ray_records(lights, self.offset, self.far);
         fill_buffer(gl, self.buffers[10], bytes_of(&records), glow::DYNAMIC_DRAW);
+    }
+
+    /// The sky's irradiance at the lit points (3 × n × samples, the layout
+    /// of [`GlDirect::d_points_buffer`], for the `samples` of the next
+    /// dispatches), added to the lights' there; `None`: none.
+    pub fn set_sky_points(&mut self, gl: &glow::Context, points: Option<&[f32]>) {
+        self.sky_points = points.is_some();
+        if let Some(p) = points {
+            fill_buffer(gl, self.buffers[11], bytes_of(p), glow::DYNAMIC_DRAW);
+        }
     }
 
     /// Replaces the emission `E` (three channels of `n`).
@@ -185,6 +205,7 @@ impl GlDirect {
             gl.uniform_1_u32(loc("n").as_ref(), self.n as u32);
             gl.uniform_1_u32(loc("samples").as_ref(), samples as u32);
             gl.uniform_1_u32(loc("lanes").as_ref(), lanes as u32);
+            gl.uniform_1_u32(loc("has_sky_points").as_ref(), self.sky_points as u32);
             set_lights(self.program);
             gl.dispatch_compute(self.n.div_ceil(64 / lanes).max(1) as u32, 1, 1);
         }

@@ -22,6 +22,9 @@ pub struct GlNearField {
     buffers: [glow::Buffer; 6],
     n: usize,
     m: usize,
+    /// Each patch's sky factors at its lit points
+    /// ([`NearFieldWeights::sky`]; empty when the bake has none).
+    sky: Vec<[f32; SAMPLES_PER_PATCH]>,
 }
 
 /// The buffers the pass reads (and `H`, `active`, writes) that other
@@ -68,7 +71,21 @@ impl GlNearField {
             buffers,
             n,
             m: w.m,
+            sky: w.sky.clone(),
         }))
+    }
+
+    /// The sky's irradiance at the lit points (3 × n × m, the direct
+    /// pass's `D` at the points' layout) from `D_sky` per patch, for the
+    /// correction to see the sky as the CPU does
+    /// ([`NearFieldWeights::sky_points`]); `None` when the bake stores no
+    /// open sky per cell.
+    pub fn sky_points(&self, d: &[Vec<f32>; 3]) -> Option<Vec<f32>> {
+        if self.sky.is_empty() {
+            return None;
+        }
+        let p = radiosity_runtime::near_field::sky_points(&self.sky, self.m, d);
+        Some(p.into_iter().flatten().collect())
     }
 
     /// The correction `c` of the last frame (3 n, channel-major).

@@ -6,7 +6,10 @@
 //! - on the patches, `D_sky` ([`radiosity_runtime::sky::irradiance`],
 //!   computed on the CPU when the sky changes: one pass over the patches'
 //!   stored cells) enters `B0` as `ρ ∘ D_sky` with the emission, so the
-//!   gather bounces it, uncorrected by the near field as on the CPU;
+//!   gather bounces it; shaped by each cell's open sky
+//!   ([`radiosity_runtime::near_field::NearFieldWeights::sky_points`]) it
+//!   joins the direct pass's `D` at the lit points, so the near-field
+//!   correction sees it as on the CPU;
 //! - on the pixels, `D_sky` through the surface map's weights, as `H` is
 //!   (shade.frag, binding [`D_SKY_BINDING`]);
 //! - behind the scene, each pixel's ray looked up in a latitude-longitude
@@ -39,8 +42,8 @@ pub struct GlSky {
     vao: glow::VertexArray,
     table: glow::Texture,
     d_sky: glow::Buffer,
-    /// The sky set, and `ρ ∘ D_sky` for `B0`.
-    sky: Option<(Sky, [Vec<f32>; 3])>,
+    /// The sky set, `ρ ∘ D_sky` for `B0`, and `D_sky`.
+    sky: Option<(Sky, [Vec<f32>; 3], [Vec<f32>; 3])>,
 }
 
 impl GlSky {
@@ -116,18 +119,23 @@ impl GlSky {
             gl.bind_texture(glow::TEXTURE_2D, None);
         }
         let b0 = radiosity_runtime::direct::reflected(&rt.baked, &d);
-        self.sky = Some((sky.clone(), b0));
+        self.sky = Some((sky.clone(), b0, d));
         Ok(())
     }
 
     /// The sky set.
     pub fn sky(&self) -> Option<&Sky> {
-        self.sky.as_ref().map(|(s, _)| s)
+        self.sky.as_ref().map(|(s, _, _)| s)
     }
 
     /// `ρ ∘ D_sky` per channel, when a sky is set.
     pub fn b0(&self) -> Option<&[Vec<f32>; 3]> {
-        self.sky.as_ref().map(|(_, b)| b)
+        self.sky.as_ref().map(|(_, b, _)| b)
+    }
+
+    /// `D_sky` per channel and patch, when a sky is set.
+    pub fn d(&self) -> Option<&[Vec<f32>; 3]> {
+        self.sky.as_ref().map(|(_, _, d)| d)
     }
 
     /// Binds `D_sky` for the shading pass and sets its `has_sky` uniform

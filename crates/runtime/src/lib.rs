@@ -468,11 +468,12 @@ impl Runtime {
         }
 
         // The sky: `D_sky` from the baked visibility, `ρ ∘ D_sky` gathered
-        // like a light's `B0`; no term without a sky. No near-field
-        // correction: the visibility is per patch, and the correction
-        // redistributes a light's variation among a patch's points (its
-        // weights sum to 0 over them: with every point at the patch's
-        // `D_sky` it was measured at 1e-9 of `H` on Sponza).
+        // like a light's `B0`; no term without a sky. The near-field
+        // correction sees the sky at the lit points shaped by each cell's
+        // open sky (`NearFieldWeights::sky_points`); a bake without it
+        // gets none for the sky (every point at the patch's `D_sky`, which
+        // the correction's weights, summing to 0 over a patch's points,
+        // ignore: measured at 1e-9 of `H` on Sponza).
         let sky_ok = cache
             && match (&self.sky, &self.sky_term) {
                 (None, None) => true,
@@ -491,7 +492,13 @@ impl Runtime {
                     let b0 = direct::reflected(&self.baked, &d);
                     stats.seconds_direct += t0.elapsed().as_secs_f64();
                     let t0 = Instant::now();
-                    let (h, g, active) = self.product(&b0);
+                    let c = self
+                        .near
+                        .sky_points(&d)
+                        .and_then(|p| self.near_correction(&p));
+                    stats.seconds_near_field += t0.elapsed().as_secs_f64();
+                    let t0 = Instant::now();
+                    let (h, g, active) = self.corrected_product(&b0, c.as_ref());
                     stats.seconds_gather += t0.elapsed().as_secs_f64();
                     add_gather(&mut stats, &g, active, groups);
                     stats.terms_computed += 1;

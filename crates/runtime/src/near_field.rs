@@ -36,6 +36,13 @@ pub struct NearFieldWeights {
     /// of each of its `m` lit points in `δ`, its far weights less its area
     /// shares, over the cells merged into the point (slots `m..16` are 0).
     pub own: Vec<[f32; SAMPLES_PER_PATCH]>,
+    /// Per patch (empty when the bake stores no open sky per cell): the
+    /// factor of each of its `m` lit points on the patch's sky irradiance,
+    /// `ō_g / Σ_k s_k o_k` with `ō_g` the share-weighted mean open sky of
+    /// the cells merged into point `g` (slots `m..16` are 0;
+    /// [`radiosity_bakefile::near_field`], "The sky"). Their share-weighted
+    /// mean is 1.
+    pub sky: Vec<[f32; SAMPLES_PER_PATCH]>,
 }
 
 /// One term's near-field correction.
@@ -85,6 +92,7 @@ impl NearFieldWeights {
             patch: Vec::with_capacity(nf.links.len()),
             weights: Vec::with_capacity(nf.links.len()),
             own: Vec::new(),
+            sky: Vec::new(),
         };
         for l in &nf.links {
             let j = l.patch as usize;
@@ -109,7 +117,22 @@ impl NearFieldWeights {
                 })
                 .collect();
         }
+        if !nf.sky.is_empty() {
+            out.sky = (0..n)
+                .map(|j| sky_factors(&nf.sky[j], &nf.shares[j], &groups[j], m))
+                .collect();
+        }
         out
+    }
+
+    /// The sky's irradiance at the lit points (three channels, `n × m`, the
+    /// layout of [`NearFieldWeights::correction`]'s input) from its
+    /// per-patch value `d` (matrix order): `d_j` times point `g`'s factor
+    /// ([`NearFieldWeights::sky`]); `None` when the bake stores no open sky
+    /// per cell (every point would take `d_j`, which the correction
+    /// ignores).
+    pub fn sky_points(&self, d: &[Vec<f32>; 3]) -> Option<[Vec<f32>; 3]> {
+        (!self.sky.is_empty()).then(|| sky_points(&self.sky, self.m, d))
     }
 
     /// Whether the correction is identically zero.
@@ -218,4 +241,49 @@ impl NearFieldWeights {
             delta: std::array::from_fn(|ch| rows.iter().map(|r| r.1[ch]).collect()),
         }
     }
+}
+
+/// The sky's irradiance at `m` lit points per patch from its per-patch
+/// value `d` and each patch's point factors `factors`
+/// ([`NearFieldWeights::sky_points`]; the GL renderer uploads the same).
+pub fn sky_points(
+    factors: &[[f32; SAMPLES_PER_PATCH]],
+    m: usize,
+    d: &[Vec<f32>; 3],
+) -> [Vec<f32>; 3] {
+    std::array::from_fn(|ch| {
+        d[ch]
+            .iter()
+            .zip(factors)
+            .flat_map(|(&v, f)| f[..m].iter().map(move |&x| v * x))
+            .collect()
+    })
+}
+
+/// One patch's sky factors for `m` lit points ([`NearFieldWeights::sky`])
+/// from its cells' open sky `o`, area shares `s` and lit point per cell
+/// `group`; all 1 for a patch that sees no sky (its `D_sky` is then 0, or
+/// the form factors' rays saw sky where these did not: no shape to give).
+fn sky_factors(
+    o: &[f32; SAMPLES_PER_PATCH],
+    s: &[f32; SAMPLES_PER_PATCH],
+    group: &[u8; SAMPLES_PER_PATCH],
+    m: usize,
+) -> [f32; SAMPLES_PER_PATCH] {
+    let mean: f64 = o.iter().zip(s).map(|(&a, &b)| a as f64 * b as f64).sum();
+    let (mut num, mut den) = ([0.0f64; SAMPLES_PER_PATCH], [0.0f64; SAMPLES_PER_PATCH]);
+    for k in 0..SAMPLES_PER_PATCH {
+        let g = group[k] as usize;
+        num[g] += o[k] as f64 * s[k] as f64;
+        den[g] += s[k] as f64;
+    }
+    std::array::from_fn(|g| {
+        if g >= m {
+            0.0
+        } else if mean <= 0.0 || den[g] <= 0.0 {
+            1.0
+        } else {
+            (num[g] / den[g] / mean) as f32
+        }
+    })
 }

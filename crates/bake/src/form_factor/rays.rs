@@ -586,3 +586,43 @@ fn finish_symmetric(
     stats.max_row_sum = out.row_sums().into_iter().fold(0.0, f64::max);
     Ok(out)
 }
+
+/// How many of `vox`'s patches see another surface's patch (or a part of
+/// their own) with `rays` rays each, cast as [`form_factors`] casts them
+/// (another rotation of the sequence): the patches the form factors will
+/// keep, estimated. A patch that sees nothing (a roof under the open sky,
+/// an outer wall) is removed by the form factors — a quarter of Sponza's —
+/// so a patch-count target is met on this count, not on the voxelization's
+/// (the voxelization's search, [`crate::voxelize::voxelize_counting`]). A
+/// patch that meets another only on a fraction `f` of its hemisphere is
+/// missed with probability `(1 − f)^rays`: at 256 rays, under 8 % for
+/// `f` = 1 %, and such patches are a few in a scene.
+pub fn seeing_patches(scene: &Scene, vox: &Voxelization, rays: usize) -> u64 {
+    let geo = pieces::geometry(scene, vox);
+    let by_patch = pieces::by_patch(vox);
+    let rs = RayScene::new(scene, vox);
+    let cover = rs.cover(scene, vox);
+    let tracer = Tracer {
+        rays: &rs,
+        cover: &cover,
+        vox,
+    };
+    (0..vox.patches.len())
+        .into_par_iter()
+        .filter(|&i| {
+            let origins = Origins::of_patch(i, &by_patch[i], &geo, vox, 0x6a09_e667_f3bc_c909);
+            if origins.is_empty() {
+                return false;
+            }
+            let mut f = 0usize;
+            (0..rays).any(|k| {
+                let (x, n, partial, r) = origins.point(k, rays, &mut f);
+                !partial.is_some_and(|tri| cover.covered(x, n, tri))
+                    && matches!(
+                        tracer.trace(x, n, cosine_direction(n, r[2], r[3])),
+                        Hit::Owned { .. }
+                    )
+            })
+        })
+        .count() as u64
+}

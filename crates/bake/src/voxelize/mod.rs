@@ -248,7 +248,8 @@ pub struct VoxelStats {
     pub seconds_pieces: f64,
     pub seconds_kernels: f64,
     pub seconds_reduce: f64,
-    /// Voxel sizes tried while searching for a patch count.
+    /// Voxel sizes tried while searching for a patch count, each with the
+    /// count the search met the target on ([`voxelize_counting`]).
     pub search: Vec<(f64, u64)>,
 }
 
@@ -281,11 +282,26 @@ pub struct OwnedPiece {
     pub region: Region,
 }
 
-/// Voxelizes `scene` at the given resolution on `backend`.
+/// Voxelizes `scene` at the given resolution on `backend`; a patch-count
+/// target counts the voxelization's patches ([`voxelize_counting`]).
 pub fn voxelize(
     scene: &Scene,
     resolution: Resolution,
     backend: &Backend,
+) -> Result<Voxelization, BakeError> {
+    voxelize_counting(scene, resolution, backend, &|v| v.stats.patches)
+}
+
+/// Voxelizes `scene` at the given resolution on `backend`, a patch-count
+/// target met on `count` of each pass (the bake counts the patches that
+/// see another surface, which the form factors keep:
+/// [`crate::form_factor::rays::seeing_patches`]). The search records each
+/// pass's size and count ([`VoxelStats::search`]).
+pub fn voxelize_counting(
+    scene: &Scene,
+    resolution: Resolution,
+    backend: &Backend,
+    count: &dyn Fn(&Voxelization) -> u64,
 ) -> Result<Voxelization, BakeError> {
     // The scene's largest extent: the finest grid the search may ask for,
     // and the scale an error without patches reports.
@@ -320,7 +336,7 @@ pub fn voxelize(
             let finest = extent / (radiosity_core::patch::MAX_DIM as f64 - 8.0);
             let mut size = (scene.surface_area() / target as f64).sqrt().max(finest);
             let mut search = Vec::new();
-            let mut best: Option<Voxelization> = None;
+            let mut best: Option<(Voxelization, u64)> = None;
             // A pass is taken only if the share of the scene's area it
             // covers (module doc, "Covered geometry") has not collapsed:
             // at most twice the least any pass covered, plus 5 % of the
@@ -340,21 +356,22 @@ pub fn voxelize(
                 (v.stats.covered_area - v.stats.covered_twin_area).max(0.0)
                     / (v.stats.scene_area - v.stats.twin_area).max(f64::MIN_POSITIVE)
             };
-            let err_of = |v: &Voxelization| (v.stats.patches as f64 / target as f64 - 1.0).abs();
+            let err_of = |counted: u64| (counted as f64 / target as f64 - 1.0).abs();
             let mut least = f64::INFINITY;
             for _ in 0..8 {
                 let v = voxelize_at(scene, size, backend)?;
-                search.push((size, v.stats.patches));
+                let counted = if v.stats.patches == 0 { 0 } else { count(&v) };
+                search.push((size, counted));
                 least = least.min(share(&v));
                 let eligible =
                     |v: &Voxelization| v.stats.patches > 0 && share(v) <= 2.0 * least + 0.05;
-                let (ok, err, empty) = (eligible(&v), err_of(&v), v.stats.patches == 0);
+                let (ok, err, empty) = (eligible(&v), err_of(counted), v.stats.patches == 0);
                 let better = ok
                     && best
                         .as_ref()
-                        .is_none_or(|b| !eligible(b) || err < err_of(b));
+                        .is_none_or(|(b, bc)| !eligible(b) || err < err_of(*bc));
                 if better || best.is_none() {
-                    best = Some(v);
+                    best = Some((v, counted));
                 }
                 if empty {
                     // No count to correct from: smaller voxels.
@@ -374,7 +391,7 @@ pub fn voxelize(
                 }
                 size = (size * step).max(finest);
             }
-            let mut best = best.expect("at least one pass ran");
+            let (mut best, _) = best.expect("at least one pass ran");
             best.stats.search = search;
             best
         }
