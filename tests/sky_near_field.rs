@@ -83,7 +83,9 @@ fn each_cells_open_sky_is_its_view_factor_to_the_opening() {
             }
         }
         let o = &nf.sky[j];
-        let (lo, hi) = o.iter().fold((1.0f32, 0.0f32), |(l, u), &v| (l.min(v), u.max(v)));
+        let (lo, hi) = o
+            .iter()
+            .fold((1.0f32, 0.0f32), |(l, u), &v| (l.min(v), u.max(v)));
         spread = spread.max(f64::from(hi - lo));
         for c in 0..SAMPLES_PER_PATCH {
             if count[c] < 16 {
@@ -121,7 +123,10 @@ fn each_cells_open_sky_is_its_view_factor_to_the_opening() {
          spread within a patch {spread:.3}"
     );
     assert!(chi2 < 1.5, "mean (error/σ)² {chi2} over {cells} cells");
-    assert!(bias.abs() < 3.0 * se, "mean error {bias} (standard error {se})");
+    assert!(
+        bias.abs() < 3.0 * se,
+        "mean error {bias} (standard error {se})"
+    );
     // The view factor runs from 0.14 (corners) to 0.41 (middle): a patch
     // by a wall sees it change by several hundredths across its cells.
     assert!(spread > 0.03, "the cells see the same sky: spread {spread}");
@@ -174,7 +179,11 @@ fn the_skys_lit_points_keep_each_patchs_mean() {
 /// and the wall below the ledge sees mostly that dark strip.
 fn ledge_box() -> (Baked, PathBuf) {
     let mut quads = unit_box(true);
-    quads.extend(common::block([0.0, 0.2, 0.0], [0.125, 0.23, 1.0], [0.6, 0.5, 0.4]));
+    quads.extend(common::block(
+        [0.0, 0.2, 0.0],
+        [0.125, 0.23, 1.0],
+        [0.6, 0.5, 0.4],
+    ));
     let obj = common::write_quads("sky-ledge-box", &quads);
     let c = common::bake_config(&obj, Resolution::VoxelSize(0.25));
     let out = obj.with_file_name("scene.rad");
@@ -295,11 +304,17 @@ fn gl_corrects_the_sky_as_the_cpu_does() {
             }
         }
         let rel = (d2 / h2).sqrt();
-        eprintln!("{} lights: GL H against the CPU's, relative RMS {rel:.2e}", lights.len());
+        eprintln!(
+            "{} lights: GL H against the CPU's, relative RMS {rel:.2e}",
+            lights.len()
+        );
         assert!(rel < 1e-4, "{} lights: relative RMS {rel}", lights.len());
         if lights.is_empty() {
             let c = r.near_field_c(gl).expect("the bake has a correction");
-            assert!(c.iter().flatten().any(|&v| v != 0.0), "GL: no sky correction");
+            assert!(
+                c.iter().flatten().any(|&v| v != 0.0),
+                "GL: no sky correction"
+            );
         }
     }
     r.delete(gl);

@@ -432,7 +432,9 @@ pub(crate) struct BakeArgs {
     /// Voxel edge length in scene units.
     #[arg(long, conflicts_with = "patches", allow_negative_numbers = true)]
     pub(crate) voxel_size: Option<f64>,
-    /// Target patch count; the voxel size is searched for. Default 2000.
+    /// Target patch count, of the patches kept (those that see another
+    /// surface: a roof under the open sky is removed); the voxel size is
+    /// searched for. Default 2000.
     #[arg(long)]
     pub(crate) patches: Option<usize>,
     /// Light bounces folded into the transfer matrix: a number k >= 1, or

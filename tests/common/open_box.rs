@@ -69,4 +69,3 @@ pub fn mean_over(x: f64, z: f64, h: f64, f: impl Fn(f64, f64) -> f64) -> f64 {
     }
     s / (k * k) as f64
 }
-

@@ -217,7 +217,12 @@ pub fn build(
             return Row::default();
         }
         let to_rays = rays as f64 / done as f64;
-        let mut row: Row = (Vec::new(), vox.patches[v].area / done as f64, Vec::new(), open);
+        let mut row: Row = (
+            Vec::new(),
+            vox.patches[v].area / done as f64,
+            Vec::new(),
+            open,
+        );
         let min = min_form_factor * rays as f64;
         for (patch, c) in links {
             let counts: [u16; SAMPLES_PER_PATCH] =

@@ -310,6 +310,10 @@ pub struct FileSummary {
     /// The sky visibility's stored cells and its section's bytes (`None`:
     /// the bake has none, and a sky lights nothing).
     pub sky: Option<(u64, u64)>,
+    /// The bytes of the near-field section's open sky per cell
+    /// ([`crate::near_field`], "The sky"; `None`: not stored, and the
+    /// near-field correction leaves the sky alone).
+    pub near_field_sky: Option<u64>,
     /// The scene as stored, and where it was looked for.
     pub scene: String,
     pub scene_path: PathBuf,
@@ -374,6 +378,8 @@ pub fn describe(path: &Path) -> Result<FileSummary, LoadError> {
         mesh_map_vertices: b.mesh_map.len() as u64,
         sky: (!b.sky.is_empty())
             .then(|| (b.sky.values.len() as u64, b.sky.to_bytes().len() as u64)),
+        near_field_sky: (!b.near_field.sky.is_empty())
+            .then(|| (b.near_field.sky.len() * 4 * crate::surface::SAMPLES_PER_PATCH) as u64),
         scene: b.info.scene.clone(),
         scene_path,
         scene_status,
@@ -445,6 +451,19 @@ impl std::fmt::Display for FileSummary {
                 f,
                 "sky visibility: none (a sky lights nothing: bake again with ray form factors)"
             )?,
+        }
+        if let Some(bytes) = self.near_field_sky {
+            writeln!(
+                f,
+                "the sky at the near field's cells: {bytes} bytes ({:.2} % of the file)",
+                100.0 * bytes as f64 / self.bytes_file.max(1) as f64
+            )?;
+        } else if self.sky.is_some() {
+            writeln!(
+                f,
+                "the sky at the near field's cells: none (the near-field correction leaves the \
+                 sky alone: bake again with the near field)"
+            )?;
         }
         match self.column_scales {
             Some((lo, hi)) => writeln!(

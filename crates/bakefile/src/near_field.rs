@@ -188,7 +188,13 @@ impl NearField {
                 out.extend_from_slice(&c.to_le_bytes());
             }
         }
-        for s in self.shares.iter().chain(&self.far).chain(&self.sky).flatten() {
+        for s in self
+            .shares
+            .iter()
+            .chain(&self.far)
+            .chain(&self.sky)
+            .flatten()
+        {
             out.extend_from_slice(&s.to_le_bytes());
         }
         out

@@ -166,7 +166,9 @@ pub const MIN_PIECE_AREA: f64 = 1e-6;
 pub enum Resolution {
     /// An explicit voxel edge length in scene units.
     VoxelSize(f64),
-    /// A target patch count: the voxel size is searched for (a few passes).
+    /// A target patch count: the voxel size is searched for (a few passes;
+    /// the bake counts the patches the form factors will keep,
+    /// [`voxelize_counting`]).
     Patches(usize),
 }
 
