@@ -36,6 +36,9 @@ pub const D_SKY_BINDING: u32 = 11;
 /// fraction of a per cent under bilinear lookup.
 pub const TABLE: (usize, usize) = (1024, 512);
 
+/// Three channels of one value per patch.
+type Channels = [Vec<f32>; 3];
+
 /// The sky's GPU state.
 pub struct GlSky {
     program: glow::Program,
@@ -43,7 +46,7 @@ pub struct GlSky {
     table: glow::Texture,
     d_sky: glow::Buffer,
     /// The sky set, `ρ ∘ D_sky` for `B0`, and `D_sky`.
-    sky: Option<(Sky, [Vec<f32>; 3], [Vec<f32>; 3])>,
+    sky: Option<(Sky, Channels, Channels)>,
 }
 
 impl GlSky {
