@@ -120,32 +120,26 @@ pub fn form_factors(
     let start = Instant::now();
     let n = vox.patches.len();
     let rays = options.rays_per_patch as usize;
-    let geo = pieces::geometry(scene, vox);
-    let by_patch = pieces::by_patch(vox);
-    let rs = RayScene::new(scene, vox);
-    let cover = rs.cover(scene, vox);
-    let tracer = Tracer {
-        rays: &rs,
-        cover: &cover,
-        vox,
-    };
     let mut counts = vec![0.0f32; n * n];
     let pairs_start = Instant::now();
     let mut rows: Vec<RowCounts> = Vec::with_capacity(n);
-    // Rows in chunks, so that progress can be reported.
-    let chunk = 256usize;
-    for (ci, block) in counts.chunks_mut((chunk * n).max(1)).enumerate() {
-        let r: Vec<RowCounts> = block
-            .par_chunks_mut(n)
-            .enumerate()
-            .map(|(k, row)| {
-                let i = ci * chunk + k;
-                emit(i, &by_patch[i], &geo, &tracer, rays, row)
-            })
-            .collect();
-        rows.extend(r);
-        progress(rows.len() as u64, n as u64);
-    }
+    let bvh_stats = with_tracer(scene, vox, |tracer, geo, by_patch| {
+        // Rows in chunks, so that progress can be reported.
+        let chunk = 256usize;
+        for (ci, block) in counts.chunks_mut((chunk * n).max(1)).enumerate() {
+            let r: Vec<RowCounts> = block
+                .par_chunks_mut(n)
+                .enumerate()
+                .map(|(k, row)| {
+                    let i = ci * chunk + k;
+                    emit(i, &by_patch[i], geo, tracer, rays, row)
+                })
+                .collect();
+            rows.extend(r);
+            progress(rows.len() as u64, n as u64);
+        }
+        tracer.rays.bvh.stats.clone()
+    });
     let seconds_pairs = pairs_start.elapsed().as_secs_f64();
     let post = Instant::now();
     let areas: Vec<f64> = vox.patches.iter().map(|p| p.area).collect();
@@ -155,7 +149,7 @@ pub fn form_factors(
         patches: n as u64,
         pairs_total: (n as u64) * (n as u64).saturating_sub(1) / 2,
         rays_cast: (n * rays) as u64,
-        bvh: rs.bvh.stats.clone(),
+        bvh: bvh_stats,
         seconds_pairs,
         ..Default::default()
     };
@@ -598,6 +592,36 @@ fn finish_symmetric(
 /// missed with probability `(1 − f)^rays`: at 256 rays, under 8 % for
 /// `f` = 1 %, and such patches are a few in a scene.
 pub fn seeing_patches(scene: &Scene, vox: &Voxelization, rays: usize) -> u64 {
+    with_tracer(scene, vox, |tracer, geo, by_patch| {
+        (0..vox.patches.len())
+            .into_par_iter()
+            .filter(|&i| {
+                let origins = Origins::of_patch(i, &by_patch[i], geo, vox, 0x6a09_e667_f3bc_c909);
+                if origins.is_empty() {
+                    return false;
+                }
+                let mut f = 0usize;
+                (0..rays).any(|k| {
+                    let (x, n, partial, r) = origins.point(k, rays, &mut f);
+                    !partial.is_some_and(|tri| tracer.cover.covered(x, n, tri))
+                        && matches!(
+                            tracer.trace(x, n, cosine_direction(n, r[2], r[3])),
+                            Hit::Owned { .. }
+                        )
+                })
+            })
+            .count() as u64
+    })
+}
+
+/// Runs `f` with a [`Tracer`] over `scene` as `vox` cuts it, the pieces'
+/// geometry and each patch's pieces (voxelization order): what every stage
+/// casting rays from the real surfaces sets up first.
+pub(crate) fn with_tracer<R>(
+    scene: &Scene,
+    vox: &Voxelization,
+    f: impl FnOnce(&Tracer, &[PieceGeo], &[Vec<usize>]) -> R,
+) -> R {
     let geo = pieces::geometry(scene, vox);
     let by_patch = pieces::by_patch(vox);
     let rs = RayScene::new(scene, vox);
@@ -607,22 +631,5 @@ pub fn seeing_patches(scene: &Scene, vox: &Voxelization, rays: usize) -> u64 {
         cover: &cover,
         vox,
     };
-    (0..vox.patches.len())
-        .into_par_iter()
-        .filter(|&i| {
-            let origins = Origins::of_patch(i, &by_patch[i], &geo, vox, 0x6a09_e667_f3bc_c909);
-            if origins.is_empty() {
-                return false;
-            }
-            let mut f = 0usize;
-            (0..rays).any(|k| {
-                let (x, n, partial, r) = origins.point(k, rays, &mut f);
-                !partial.is_some_and(|tri| cover.covered(x, n, tri))
-                    && matches!(
-                        tracer.trace(x, n, cosine_direction(n, r[2], r[3])),
-                        Hit::Owned { .. }
-                    )
-            })
-        })
-        .count() as u64
+    f(&tracer, &geo, &by_patch)
 }
