@@ -335,13 +335,16 @@ impl GlRenderer {
                 }
             }
             self.direct.set_emission(gl, &e);
-            // And at the lit points, for the near-field correction.
-            let points = self
-                .near
-                .as_ref()
-                .zip(self.sky.d())
-                .and_then(|(nf, d)| nf.sky_points(d));
-            self.direct.set_sky_points(gl, points.as_deref());
+            if self.sky_changed {
+                // And at the lit points, for the near-field correction
+                // (a change of emission alone leaves them).
+                let points = self
+                    .near
+                    .as_ref()
+                    .zip(self.sky.d())
+                    .and_then(|(nf, d)| nf.sky_points(d));
+                self.direct.set_sky_points(gl, points.as_deref());
+            }
             self.last_scales = Some(scales.clone());
             self.sky_changed = false;
         }
