@@ -111,147 +111,165 @@ pub fn build(
     check_options(rays, min_form_factor)?;
     let cast = rays;
     let vox_of = pieces::vox_of(patch_index_of, n);
-    let (shares, stored, far_sum, sky) = with_tracer(scene, vox, |tracer, geo, by_patch| {
-        let point = |s: usize| samples.position[s].map(f64::from);
-        let nearest = |j: usize, y: [f64; 3]| -> usize {
-            let base = j * SAMPLES_PER_PATCH;
-            (0..SAMPLES_PER_PATCH)
-                .min_by(|&a, &b| {
-                    let d2 = |c: usize| {
-                        let p = point(base + c);
-                        (0..3).map(|q| (p[q] - y[q]).powi(2)).sum::<f64>()
-                    };
-                    d2(a).total_cmp(&d2(b))
-                })
-                .expect("16 cells")
-        };
-        // Each patch's cell shares: SHARE_POINTS points over its visible
-        // pieces by area, each to its nearest sample point.
-        let shares: Vec<[f32; SAMPLES_PER_PATCH]> = (0..n)
-            .into_par_iter()
-            .map(|j| {
-                let v = vox_of[j];
-                let uniform = [1.0 / SAMPLES_PER_PATCH as f32; SAMPLES_PER_PATCH];
-                if v == usize::MAX {
-                    return uniform;
-                }
-                let origins = Origins::of_patch(v, &by_patch[v], geo, vox, 0x2545_f491_4f6c_dd1d);
-                if origins.is_empty() {
-                    return uniform;
-                }
-                let mut c = [0u32; SAMPLES_PER_PATCH];
-                let mut f = 0usize;
-                for k in 0..SHARE_POINTS {
-                    let (x, nrm, partial, _) = origins.point(k, SHARE_POINTS, &mut f);
-                    if !partial.is_some_and(|tri| tracer.cover.covered(x, nrm, tri)) {
-                        c[nearest(j, x)] += 1;
+    let (shares, stored, far_sum, sky, cell_rays) =
+        with_tracer(scene, vox, |tracer, geo, by_patch| {
+            let point = |s: usize| samples.position[s].map(f64::from);
+            let nearest = |j: usize, y: [f64; 3]| -> usize {
+                let base = j * SAMPLES_PER_PATCH;
+                (0..SAMPLES_PER_PATCH)
+                    .min_by(|&a, &b| {
+                        let d2 = |c: usize| {
+                            let p = point(base + c);
+                            (0..3).map(|q| (p[q] - y[q]).powi(2)).sum::<f64>()
+                        };
+                        d2(a).total_cmp(&d2(b))
+                    })
+                    .expect("16 cells")
+            };
+            // Each patch's cell shares: SHARE_POINTS points over its visible
+            // pieces by area, each to its nearest sample point.
+            let shares: Vec<[f32; SAMPLES_PER_PATCH]> = (0..n)
+                .into_par_iter()
+                .map(|j| {
+                    let v = vox_of[j];
+                    let uniform = [1.0 / SAMPLES_PER_PATCH as f32; SAMPLES_PER_PATCH];
+                    if v == usize::MAX {
+                        return uniform;
                     }
+                    let origins =
+                        Origins::of_patch(v, &by_patch[v], geo, vox, 0x2545_f491_4f6c_dd1d);
+                    if origins.is_empty() {
+                        return uniform;
+                    }
+                    let mut c = [0u32; SAMPLES_PER_PATCH];
+                    let mut f = 0usize;
+                    for k in 0..SHARE_POINTS {
+                        let (x, nrm, partial, _) = origins.point(k, SHARE_POINTS, &mut f);
+                        if !partial.is_some_and(|tri| tracer.cover.covered(x, nrm, tri)) {
+                            c[nearest(j, x)] += 1;
+                        }
+                    }
+                    let total: u32 = c.iter().sum();
+                    if total == 0 {
+                        return uniform;
+                    }
+                    let s: [f64; SAMPLES_PER_PATCH] =
+                        std::array::from_fn(|k| c[k] as f64 / total as f64);
+                    s.map(|v| v as f32)
+                })
+                .collect();
+            // Per receiver: its stored links, its area per ray traced, its
+            // dropped links' ray counts (for the far weights), and per cell of its
+            // own the rays cast from origins nearest that cell's point and those of
+            // them that left the scene (its open sky, `NearField::sky`).
+            type Row = (
+                Vec<NearLink>,
+                f64,
+                Vec<(u32, [u16; SAMPLES_PER_PATCH])>,
+                [[u32; SAMPLES_PER_PATCH]; 2],
+            );
+            let row_of = |i: usize| -> Row {
+                let v = vox_of[i];
+                if v == usize::MAX {
+                    return Row::default();
                 }
-                let total: u32 = c.iter().sum();
-                if total == 0 {
-                    return uniform;
+                let origins = Origins::of_patch(v, &by_patch[v], geo, vox, 0x5851_f42d_4c95_7f2d);
+                if origins.is_empty() {
+                    return Row::default();
                 }
-                let s: [f64; SAMPLES_PER_PATCH] =
-                    std::array::from_fn(|k| c[k] as f64 / total as f64);
-                s.map(|v| v as f32)
-            })
-            .collect();
-        // Per receiver: its stored links, its area per ray traced, its
-        // dropped links' ray counts (for the far weights), and per cell of its
-        // own the rays cast from origins nearest that cell's point and those of
-        // them that left the scene (its open sky, `NearField::sky`).
-        type Row = (
-            Vec<NearLink>,
-            f64,
-            Vec<(u32, [u16; SAMPLES_PER_PATCH])>,
-            [[u32; SAMPLES_PER_PATCH]; 2],
-        );
-        let row_of = |i: usize| -> Row {
-            let v = vox_of[i];
-            if v == usize::MAX {
-                return Row::default();
-            }
-            let origins = Origins::of_patch(v, &by_patch[v], geo, vox, 0x5851_f42d_4c95_7f2d);
-            if origins.is_empty() {
-                return Row::default();
-            }
-            let mut links: BTreeMap<u32, [u32; SAMPLES_PER_PATCH]> = BTreeMap::new();
-            let (mut f, mut covered) = (0usize, 0u32);
-            let mut open = [[0u32; SAMPLES_PER_PATCH]; 2];
-            for k in 0..rays as usize {
-                let (x, nrm, partial, r) = origins.point(k, rays as usize, &mut f);
-                if partial.is_some_and(|tri| tracer.cover.covered(x, nrm, tri)) {
-                    covered += 1;
-                    continue;
-                }
-                let own = nearest(i, x);
-                open[0][own] += 1;
-                let (patch, y) = match tracer.trace(x, nrm, cosine_direction(nrm, r[2], r[3])) {
-                    Hit::Owned { patch, y } => (patch, y),
-                    Hit::Escaped => {
-                        open[1][own] += 1;
+                // Per neighbour: its rays by the neighbour's cell they meet, and
+                // by the receiver's cell they leave.
+                type Counts = ([u32; SAMPLES_PER_PATCH], [u32; SAMPLES_PER_PATCH]);
+                let mut links: BTreeMap<u32, Counts> = BTreeMap::new();
+                let (mut f, mut covered) = (0usize, 0u32);
+                let mut open = [[0u32; SAMPLES_PER_PATCH]; 2];
+                for k in 0..rays as usize {
+                    let (x, nrm, partial, r) = origins.point(k, rays as usize, &mut f);
+                    if partial.is_some_and(|tri| tracer.cover.covered(x, nrm, tri)) {
+                        covered += 1;
                         continue;
                     }
-                    _ => continue,
-                };
-                let Some(j) = patch_index_of[patch as usize] else {
-                    continue;
-                };
-                if j as usize == i {
-                    continue;
+                    let own = nearest(i, x);
+                    open[0][own] += 1;
+                    let (patch, y) = match tracer.trace(x, nrm, cosine_direction(nrm, r[2], r[3])) {
+                        Hit::Owned { patch, y } => (patch, y),
+                        Hit::Escaped => {
+                            open[1][own] += 1;
+                            continue;
+                        }
+                        _ => continue,
+                    };
+                    let Some(j) = patch_index_of[patch as usize] else {
+                        continue;
+                    };
+                    if j as usize == i {
+                        continue;
+                    }
+                    let cell = nearest(j as usize, y);
+                    let e = links
+                        .entry(j)
+                        .or_insert(([0; SAMPLES_PER_PATCH], [0; SAMPLES_PER_PATCH]));
+                    e.0[cell] += 1;
+                    e.1[own] += 1;
                 }
-                let cell = nearest(j as usize, y);
-                links.entry(j).or_insert([0; SAMPLES_PER_PATCH])[cell] += 1;
-            }
-            // Counts per ray cast, in units of `rays` (rounded down, so a
-            // receiver's counts never exceed `rays`).
-            let done = rays.saturating_sub(covered);
-            if done == 0 {
-                return Row::default();
-            }
-            let to_rays = rays as f64 / done as f64;
-            let mut row: Row = (
-                Vec::new(),
-                vox.patches[v].area / done as f64,
-                Vec::new(),
-                open,
-            );
-            let min = min_form_factor * rays as f64;
-            for (patch, c) in links {
-                let counts: [u16; SAMPLES_PER_PATCH] =
-                    std::array::from_fn(|k| (c[k] as f64 * to_rays).floor() as u16);
-                if counts.iter().map(|&v| v as f64).sum::<f64>() >= min {
-                    row.0.push(NearLink { patch, counts });
-                } else {
-                    // Raw counts: at most `rays` ≤ MAX_RAYS each.
-                    row.2.push((patch, c.map(|v| v as u16)));
+                // Counts per ray cast, in units of `rays` (rounded down, so a
+                // receiver's counts never exceed `rays`).
+                let done = rays.saturating_sub(covered);
+                if done == 0 {
+                    return Row::default();
                 }
-            }
-            row
-        };
-        // Receivers in chunks, so that the dropped links' counts (up to one
-        // list entry per neighbour a receiver's rays meet: thousands at large
-        // patch counts) are folded into the far sums and freed as they come.
-        let mut stored: Vec<Vec<NearLink>> = Vec::with_capacity(n);
-        let mut far_sum = vec![[0.0f64; SAMPLES_PER_PATCH]; n];
-        let mut sky: Vec<[f32; SAMPLES_PER_PATCH]> = Vec::with_capacity(n);
-        for first in (0..n).step_by(RECEIVERS_PER_CHUNK) {
-            let chunk: Vec<Row> = (first..(first + RECEIVERS_PER_CHUNK).min(n))
-                .into_par_iter()
-                .map(row_of)
-                .collect();
-            for (links, per_ray, dropped, [cast, open]) in chunk {
-                sky.push(open_fractions(&cast, &open));
-                for (j, c) in dropped {
-                    for (f, &v) in far_sum[j as usize].iter_mut().zip(&c) {
-                        *f += v as f64 * per_ray;
+                let to_rays = rays as f64 / done as f64;
+                let mut row: Row = (
+                    Vec::new(),
+                    vox.patches[v].area / done as f64,
+                    Vec::new(),
+                    open,
+                );
+                let min = min_form_factor * rays as f64;
+                for (patch, (c, from)) in links {
+                    let counts: [u16; SAMPLES_PER_PATCH] =
+                        std::array::from_fn(|k| (c[k] as f64 * to_rays).floor() as u16);
+                    if counts.iter().map(|&v| v as f64).sum::<f64>() >= min {
+                        // Raw counts by the receiver's cell: at most its rays
+                        // cast from that cell.
+                        let from = from.map(|v| v as u16);
+                        row.0.push(NearLink {
+                            patch,
+                            counts,
+                            from,
+                        });
+                    } else {
+                        // Raw counts: at most `rays` ≤ MAX_RAYS each.
+                        row.2.push((patch, c.map(|v| v as u16)));
                     }
                 }
-                stored.push(links);
+                row
+            };
+            // Receivers in chunks, so that the dropped links' counts (up to one
+            // list entry per neighbour a receiver's rays meet: thousands at large
+            // patch counts) are folded into the far sums and freed as they come.
+            let mut stored: Vec<Vec<NearLink>> = Vec::with_capacity(n);
+            let mut far_sum = vec![[0.0f64; SAMPLES_PER_PATCH]; n];
+            let mut sky: Vec<[f32; SAMPLES_PER_PATCH]> = Vec::with_capacity(n);
+            let mut cast_of: Vec<[u16; SAMPLES_PER_PATCH]> = Vec::with_capacity(n);
+            for first in (0..n).step_by(RECEIVERS_PER_CHUNK) {
+                let chunk: Vec<Row> = (first..(first + RECEIVERS_PER_CHUNK).min(n))
+                    .into_par_iter()
+                    .map(row_of)
+                    .collect();
+                for (links, per_ray, dropped, [cast, open]) in chunk {
+                    sky.push(open_fractions(&cast, &open));
+                    cast_of.push(cast.map(|v| v as u16));
+                    for (j, c) in dropped {
+                        for (f, &v) in far_sum[j as usize].iter_mut().zip(&c) {
+                            *f += v as f64 * per_ray;
+                        }
+                    }
+                    stored.push(links);
+                }
             }
-        }
-        (shares, stored, far_sum, sky)
-    });
+            (shares, stored, far_sum, sky, cast_of)
+        });
 
     // Far weights: the dropped rays per neighbour cell, normalised; a patch
     // none of them meets takes its area shares.
@@ -274,6 +292,7 @@ pub fn build(
         shares,
         far,
         sky,
+        cast: cell_rays,
     };
     nf.starts.push(0);
     for r in stored {

@@ -60,6 +60,24 @@
 //! A run time lighting fewer than [`SAMPLES_PER_PATCH`] points merges each
 //! cell into its nearest lit point ([`NearField::groups`]).
 //!
+//! **At the receiver.** `H_i` is one value per patch, and the surface map
+//! blends those values between patch centres; but a receiver's parts do
+//! not see a near neighbour alike — the foot of a pillar sees the floor at
+//! its foot under a much larger angle than the pillar's top does (on
+//! Sponza at noon two thirds of the indirect image's squared error was one
+//! such foot). So each stored link also counts its rays by the
+//! *receiver's* cell they leave from (`r_ijg`, [`NearLink::from`]), and
+//! each patch its rays cast per cell (`n_ig`, [`NearField::cast`]); the run
+//! time adds at the receiver's point `g` the deviation
+//!
+//! `Δ_ig = Σ_j (r_ijg / n_ig − R_ij / N_i) · B_j`, `R_ij = Σ_g r_ijg`, `N_i = Σ_g n_ig`
+//!
+//! with `B_j = B0_j + ρ_j H_j` the neighbour's whole exitance (its mean;
+//! the sender's cells are the correction above). Weighted by the cells'
+//! rays the deviations sum to zero, so `H_i` is unchanged and only its
+//! distribution over the receiver is: pixels take `Δ` interpolated from
+//! the points of the patches the surface map blends.
+//!
 //! **The sky.** A sky's irradiance is baked per patch (`SKYV`), so every
 //! point of a patch would get its mean and the correction, whose weights
 //! sum to zero over a patch's points, would add nothing to the sky's
@@ -86,7 +104,9 @@
 //! per patch its 16 cell shares (`f32`, each ≥ 0, summing to 1); then, with
 //! flag bit 0, per patch its 16 far weights (the same rules); then, with
 //! flag bit 1, per patch its 16 cells' open sky fractions (`f32`, each in
-//! 0..=1).
+//! 0..=1); then, with flag bit 2, per link its rays by the receiver's cell
+//! (16 `u16`), and per patch its rays cast per cell (16 `u16`; a link's
+//! count of a cell at most the cell's).
 
 use super::surface::{PatchSamples, SAMPLES_PER_PATCH};
 use crate::section_error::SectionError;
@@ -109,6 +129,14 @@ const FLAG_FAR: u32 = 1;
 /// Header flag: the cells' open sky fractions follow.
 const FLAG_SKY: u32 = 2;
 
+/// Header flag: the links' counts by the receiver's cell and each patch's
+/// rays per cell follow.
+const FLAG_RECEIVER: u32 = 4;
+
+/// Bytes of one link's counts by the receiver's cell (and of one patch's
+/// rays per cell).
+const RECEIVER_LEN: usize = 2 * SAMPLES_PER_PATCH;
+
 /// One receiver's view of one near neighbour.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct NearLink {
@@ -117,6 +145,9 @@ pub struct NearLink {
     /// Rays from the receiver meeting the neighbour nearest each of its
     /// sample points.
     pub counts: [u16; SAMPLES_PER_PATCH],
+    /// The same rays by the receiver's cell they left from (all 0 in a
+    /// file without them, [`NearField::cast`] then empty).
+    pub from: [u16; SAMPLES_PER_PATCH],
 }
 
 /// The near-field correction of a bake (module doc). Empty (`rays == 0`)
@@ -140,6 +171,10 @@ pub struct NearField {
     /// fraction of the rays from each of its cells that left the scene, its
     /// cells' open sky (module doc, "The sky").
     pub sky: Vec<[f32; SAMPLES_PER_PATCH]>,
+    /// Per patch, or empty (files from before they were stored, whose
+    /// links' `from` are 0): the rays cast from each of its cells (module
+    /// doc, "At the receiver").
+    pub cast: Vec<[u16; SAMPLES_PER_PATCH]>,
 }
 
 impl NearField {
@@ -175,7 +210,12 @@ impl NearField {
             self.links.len() as u32,
             SAMPLES_PER_PATCH as u32,
             if self.far.is_empty() { 0 } else { FLAG_FAR }
-                | if self.sky.is_empty() { 0 } else { FLAG_SKY },
+                | if self.sky.is_empty() { 0 } else { FLAG_SKY }
+                | if self.cast.is_empty() {
+                    0
+                } else {
+                    FLAG_RECEIVER
+                },
         ] {
             out.extend_from_slice(&v.to_le_bytes());
         }
@@ -196,6 +236,12 @@ impl NearField {
             .flatten()
         {
             out.extend_from_slice(&s.to_le_bytes());
+        }
+        if !self.cast.is_empty() {
+            let from = self.links.iter().map(|l| &l.from);
+            for c in from.chain(&self.cast).flatten() {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
         }
         out
     }
@@ -218,17 +264,19 @@ impl NearField {
                 "{cells} cells per link, this build reads {SAMPLES_PER_PATCH}"
             )));
         }
-        if flags & !(FLAG_FAR | FLAG_SKY) != 0 {
+        if flags & !(FLAG_FAR | FLAG_SKY | FLAG_RECEIVER) != 0 {
             return Err(SectionError::Unsupported(format!(
-                "flags are {flags:#x}, only bits 0 and 1 are defined"
+                "flags are {flags:#x}, only bits 0 to 2 are defined"
             )));
         }
         let (has_far, has_sky) = (flags & FLAG_FAR != 0, flags & FLAG_SKY != 0);
+        let has_receiver = flags & FLAG_RECEIVER != 0;
         let per_patch = 1 + u64::from(has_far) + u64::from(has_sky);
         let want = (n as u64 + 1) * 4
             + m as u64 * LINK_LEN as u64
             + 16
-            + per_patch * n as u64 * SHARES_LEN;
+            + per_patch * n as u64 * SHARES_LEN
+            + u64::from(has_receiver) * (m + n) as u64 * RECEIVER_LEN as u64;
         if b.len() as u64 != want {
             return Err(SectionError::Length {
                 found: b.len() as u64,
@@ -238,17 +286,32 @@ impl NearField {
         }
         let starts: Vec<u32> = (0..=n).map(|i| u32_at(16 + 4 * i)).collect();
         let base = 16 + 4 * (n + 1);
+        let u16s_at = |at: usize| -> [u16; SAMPLES_PER_PATCH] {
+            std::array::from_fn(|k| u16::from_le_bytes([b[at + 2 * k], b[at + 1 + 2 * k]]))
+        };
+        // The receiver's counts, when stored, follow every per-patch row.
+        let receiver = base + LINK_LEN * m + per_patch as usize * n * SHARES_LEN as usize;
         let links = (0..m)
             .map(|l| {
                 let at = base + LINK_LEN * l;
                 NearLink {
                     patch: u32_at(at),
-                    counts: std::array::from_fn(|k| {
-                        u16::from_le_bytes([b[at + 4 + 2 * k], b[at + 5 + 2 * k]])
-                    }),
+                    counts: u16s_at(at + 4),
+                    from: if has_receiver {
+                        u16s_at(receiver + RECEIVER_LEN * l)
+                    } else {
+                        [0; SAMPLES_PER_PATCH]
+                    },
                 }
             })
             .collect();
+        let cast = if has_receiver {
+            (0..n)
+                .map(|j| u16s_at(receiver + RECEIVER_LEN * (m + j)))
+                .collect()
+        } else {
+            Vec::new()
+        };
         let base = base + LINK_LEN * m;
         let f32_at = |at: usize| f32::from_le_bytes(b[at..at + 4].try_into().expect("4 bytes"));
         let per_patch_at = |base: usize| -> Vec<[f32; SAMPLES_PER_PATCH]> {
@@ -274,6 +337,7 @@ impl NearField {
             shares,
             far,
             sky,
+            cast,
         };
         nf.check(n)?;
         Ok(nf)
@@ -312,6 +376,12 @@ impl NearField {
             return Err(SectionError::Invalid(format!(
                 "{} open sky fractions for {n} patches",
                 self.sky.len()
+            )));
+        }
+        if !self.cast.is_empty() && self.cast.len() != n {
+            return Err(SectionError::Invalid(format!(
+                "{} patches' rays per cell for {n} patches",
+                self.cast.len()
             )));
         }
         for (j, o) in self.sky.iter().enumerate() {
@@ -356,6 +426,15 @@ impl NearField {
                     )));
                 }
                 total += l.counts.iter().map(|&c| c as u64).sum::<u64>();
+                if let Some(cast) = self.cast.get(i) {
+                    if let Some(g) = (0..SAMPLES_PER_PATCH).find(|&g| l.from[g] > cast[g]) {
+                        return Err(SectionError::Invalid(format!(
+                            "patch {i}: its link to {} counts {} rays from cell {g}, which \
+                             cast {}",
+                            l.patch, l.from[g], cast[g]
+                        )));
+                    }
+                }
             }
             if total > self.rays as u64 {
                 return Err(SectionError::Invalid(format!(
@@ -387,6 +466,11 @@ impl NearField {
                 Vec::new()
             } else {
                 order.iter().map(|&o| self.sky[o as usize]).collect()
+            },
+            cast: if self.cast.is_empty() {
+                Vec::new()
+            } else {
+                order.iter().map(|&o| self.cast[o as usize]).collect()
             },
         };
         out.starts.push(0);

@@ -213,6 +213,9 @@ pub struct Runtime {
     d: [Vec<f32>; 3],
     b0: [Vec<f32>; 3],
     h: [Vec<f32>; 3],
+    /// `Δ` at each patch's 16 points after the last frame
+    /// ([`NearFieldWeights::receiver_deviation`]; `None` without).
+    h_points: Option<[Vec<f32>; 3]>,
     frames: u64,
     /// The options the cached terms were computed with (culling, sample
     /// points): a frame after either changed recomputes every term.
@@ -252,6 +255,7 @@ impl Runtime {
             d: std::array::from_fn(|_| vec![0.0; n]),
             b0: std::array::from_fn(|_| vec![0.0; n]),
             h: std::array::from_fn(|_| vec![0.0; n]),
+            h_points: None,
             frames: 0,
             cached_with: (options.cull, options.samples),
             baked,
@@ -412,6 +416,14 @@ impl Runtime {
         self.sky.as_ref()
     }
 
+    /// The deviation of `H` at each patch's 16 sample points after the last
+    /// frame (three channels, `n × 16`; [`NearFieldWeights::receiver_deviation`]),
+    /// which pixels add interpolated from them; `None` when the bake stores
+    /// no counts by the receiver's cell or the correction is off.
+    pub fn h_points(&self) -> Option<&[Vec<f32>; 3]> {
+        self.h_points.as_ref()
+    }
+
     /// `D_sky` on the patches after the last frame (matrix order), when a
     /// sky lit it.
     pub fn d_sky(&self) -> Option<&[Vec<f32>; 3]> {
@@ -570,6 +582,12 @@ impl Runtime {
                 }
             }
         }
+        // How `H` spreads over each receiver near its neighbours.
+        let t0 = Instant::now();
+        self.h_points = self
+            .near
+            .receiver_deviation(&self.b0, &self.h, &self.baked.patches);
+        stats.seconds_near_field += t0.elapsed().as_secs_f64();
         stats.seconds_total = start.elapsed().as_secs_f64();
         stats
     }

@@ -43,6 +43,11 @@ pub struct NearFieldWeights {
     /// [`radiosity_bakefile::near_field`], "The sky"). Their share-weighted
     /// mean is 1.
     pub sky: Vec<[f32; SAMPLES_PER_PATCH]>,
+    /// Per link (empty when the bake stores no counts by the receiver's
+    /// cell): the weight of the neighbour's exitance at each of the
+    /// receiver's 16 points, `r_ijg / n_ig − R_ij / N_i`
+    /// ([`radiosity_bakefile::near_field`], "At the receiver").
+    pub receiver: Vec<[f32; SAMPLES_PER_PATCH]>,
 }
 
 /// One term's near-field correction.
@@ -93,6 +98,7 @@ impl NearFieldWeights {
             weights: Vec::with_capacity(nf.links.len()),
             own: Vec::new(),
             sky: Vec::new(),
+            receiver: Vec::new(),
         };
         for l in &nf.links {
             let j = l.patch as usize;
@@ -117,6 +123,23 @@ impl NearFieldWeights {
                 })
                 .collect();
         }
+        if !nf.cast.is_empty() {
+            out.receiver = Vec::with_capacity(nf.links.len());
+            for (i, cast) in nf.cast.iter().enumerate() {
+                let total: f64 = cast.iter().map(|&v| f64::from(v)).sum();
+                for l in nf.links_of(i) {
+                    let from: f64 = l.from.iter().map(|&v| f64::from(v)).sum();
+                    let mean = if total > 0.0 { from / total } else { 0.0 };
+                    out.receiver.push(std::array::from_fn(|g| {
+                        if cast[g] == 0 {
+                            0.0
+                        } else {
+                            (f64::from(l.from[g]) / f64::from(cast[g]) - mean) as f32
+                        }
+                    }));
+                }
+            }
+        }
         if !nf.sky.is_empty() {
             out.sky = (0..n)
                 .map(|j| sky_factors(&nf.sky[j], &nf.shares[j], &groups[j], m))
@@ -133,6 +156,45 @@ impl NearFieldWeights {
     /// ignores).
     pub fn sky_points(&self, d: &[Vec<f32>; 3]) -> Option<[Vec<f32>; 3]> {
         (!self.sky.is_empty()).then(|| sky_points(&self.sky, self.m, d))
+    }
+
+    /// The deviation `Δ` of `H` at each receiver's 16 points (three
+    /// channels, `n × 16`: patch `i`'s point `g` at `16 i + g`) from the
+    /// frame's `B0` and `H` (matrix order), its near neighbours' whole
+    /// exitance `B0_j + ρ_j H_j` weighted by [`NearFieldWeights::receiver`]
+    /// (summed per receiver in link order, f32, as the shader does);
+    /// `None` when the bake stores no counts by the receiver's cell.
+    pub fn receiver_deviation(
+        &self,
+        b0: &[Vec<f32>; 3],
+        h: &[Vec<f32>; 3],
+        patches: &[BakedPatch],
+    ) -> Option<[Vec<f32>; 3]> {
+        if self.receiver.is_empty() {
+            return None;
+        }
+        let n = self.starts.len() - 1;
+        let rows: Vec<[[f32; SAMPLES_PER_PATCH]; 3]> = (0..n)
+            .into_par_iter()
+            .with_min_len(PATCHES_PER_TASK)
+            .map(|i| {
+                let mut d = [[0.0f32; SAMPLES_PER_PATCH]; 3];
+                for l in self.starts[i] as usize..self.starts[i + 1] as usize {
+                    let j = self.patch[l] as usize;
+                    let u = &self.receiver[l];
+                    for (ch, dc) in d.iter_mut().enumerate() {
+                        let b = b0[ch][j] + patches[j].albedo[ch] * h[ch][j];
+                        for (x, &w) in dc.iter_mut().zip(u) {
+                            *x += w * b;
+                        }
+                    }
+                }
+                d
+            })
+            .collect();
+        Some(std::array::from_fn(|ch| {
+            rows.iter().flat_map(|r| r[ch]).collect()
+        }))
     }
 
     /// Whether the correction is identically zero.

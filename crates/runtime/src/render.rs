@@ -183,6 +183,7 @@ pub fn render(
         .filter(|_| matches!(view, View::Final | View::Direct))
         .map(|s| s.prepared());
     let map = &rt.baked.surface_map;
+    let (h_points, samples) = (rt.h_points(), &rt.baked.samples);
     let rows: Vec<(Vec<[f32; 3]>, Vec<bool>, RenderStats)> = (0..height)
         .into_par_iter()
         .map(|py| {
@@ -237,13 +238,22 @@ pub fn render(
                 let mat = &scene.materials[m];
                 let es = scales.get(&mat.name).copied().unwrap_or(1.0);
                 let le: [f64; 3] = std::array::from_fn(|c| (es * mat.emission[c]) as f64 / PI);
-                let (w, how) = surface::weights(map, tri, x.map(|v| v as f32));
+                let xf = x.map(|v| v as f32);
+                let (w, how) = surface::weights(map, tri, xf);
                 match how {
                     Lookup::Piece => {}
                     Lookup::NearestPiece => s.nearest_piece += 1,
                     Lookup::Unmapped => s.unmapped += 1,
                 }
-                let hx = surface::apply(&w, h);
+                let mut hx = surface::apply(&w, h);
+                if let Some(hp) = h_points {
+                    // How H spreads over the receiver near its neighbours
+                    // (never below 0: a deviation larger than H is noise).
+                    let dev = surface::at_points(&w, samples, map.voxel_size, xf, hp);
+                    for c in 0..3 {
+                        hx[c] = (hx[c] + dev[c]).max(0.0);
+                    }
+                }
                 let sx = match d_sky {
                     Some(ds) if matches!(view, View::Final | View::Direct) => {
                         surface::apply(&w, ds)
