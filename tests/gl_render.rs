@@ -423,7 +423,9 @@ fn a_frame_with_h_from_the_cpu_shades_that_h() {
     let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).unwrap();
     let (lights, scales) = (&config.lights, &config.emission);
     rt.frame(lights, scales);
-    let a = r.frame_with_h(gl, lights, scales, rt.h()).unwrap();
+    let a = r
+        .frame_with_h(gl, lights, scales, rt.h(), rt.h_points())
+        .unwrap();
     assert!(!a.unchanged && a.views > 0, "{a:?}");
     let uploaded = r.h(gl);
     for c in 0..3 {
@@ -432,7 +434,7 @@ fn a_frame_with_h_from_the_cpu_shades_that_h() {
         }
     }
     assert!(
-        r.frame_with_h(gl, lights, scales, rt.h())
+        r.frame_with_h(gl, lights, scales, rt.h(), rt.h_points())
             .unwrap()
             .unchanged
     );
@@ -456,7 +458,7 @@ fn a_frame_with_h_from_the_cpu_shades_that_h() {
     );
     let gpu_times = r.pass_times(gl, true);
     assert!(
-        !r.frame_with_h(gl, lights, scales, rt.h())
+        !r.frame_with_h(gl, lights, scales, rt.h(), rt.h_points())
             .unwrap()
             .unchanged
     );
@@ -474,7 +476,7 @@ fn a_frame_with_h_from_the_cpu_shades_that_h() {
     );
     // H of the wrong size is refused.
     let short: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; 3]);
-    assert!(r.frame_with_h(gl, &[], scales, &short).is_err());
+    assert!(r.frame_with_h(gl, &[], scales, &short, None).is_err());
     r.delete(gl);
 }
 

@@ -259,7 +259,7 @@ pub(crate) fn frame_table(
     // viewer's `--patch-light cpu`), the image drawn, to `glFinish`.
     let frame_from = |r: &mut GlRenderer, cpu_h: bool| -> Result<(), crate::gl::GlError> {
         if cpu_h {
-            r.frame_with_h(gl, &lights, &config.emission, rt.h())?;
+            r.frame_with_h(gl, &lights, &config.emission, rt.h(), rt.h_points())?;
         } else {
             r.frame(gl, &lights, &config.emission)?;
         }

@@ -352,7 +352,7 @@ impl App {
         let rt = &mut self.rt;
         let cpu_ms = timed(&mut || {
             rt.frame(lights, scales);
-            renderer.frame_with_h(gl, lights, scales, rt.h())?;
+            renderer.frame_with_h(gl, lights, scales, rt.h(), rt.h_points())?;
             Ok(())
         })?;
         let gpu_ms = timed(&mut || {
@@ -392,9 +392,13 @@ impl App {
             if !fs.unchanged {
                 self.cpu_ms = 1e3 * fs.seconds_total;
             }
-            state
-                .renderer
-                .frame_with_h(gl, &lights, &self.lights.emission, self.rt.h())?;
+            state.renderer.frame_with_h(
+                gl,
+                &lights,
+                &self.lights.emission,
+                self.rt.h(),
+                self.rt.h_points(),
+            )?;
         } else {
             state.renderer.frame(gl, &lights, &self.lights.emission)?;
         }

@@ -14,12 +14,21 @@ fn with_near_field() -> BakeFile {
             rays: 64,
             starts: vec![0, 2, 2, 2, 2, 3],
             links: vec![
-                NearLink { patch: 1, counts },
+                NearLink {
+                    patch: 1,
+                    counts,
+                    from: [2; 16],
+                },
                 NearLink {
                     patch: 3,
                     counts: [1; 16],
+                    from: [1; 16],
                 },
-                NearLink { patch: 0, counts },
+                NearLink {
+                    patch: 0,
+                    counts,
+                    from: [3; 16],
+                },
             ],
             shares: (0..5)
                 .map(|j| std::array::from_fn(|k| if k == j { 0.5 } else { 0.5 / 15.0 }))
@@ -30,6 +39,7 @@ fn with_near_field() -> BakeFile {
             sky: (0..5)
                 .map(|j| std::array::from_fn(|k| (j * 16 + k) as f32 / 80.0))
                 .collect(),
+            cast: vec![[4; 16]; 5],
         },
         ..sample()
     }
@@ -56,6 +66,10 @@ fn near_field_round_trips_and_is_optional() {
     for far in [true, false] {
         let mut old = bf.clone();
         old.near_field.sky.clear();
+        old.near_field.cast.clear();
+        for l in old.near_field.links.iter_mut() {
+            l.from = [0; 16];
+        }
         if !far {
             old.near_field.far.clear();
         }
@@ -137,8 +151,21 @@ fn near_field_errors_name_the_section_and_the_value() {
             "patch 4: open sky fractions",
         ),
         (
-            Box::new(|b: &mut Vec<u8>| b[12..16].copy_from_slice(&7u32.to_le_bytes())),
-            "flags are 0x7",
+            // Link 0 counts 5 rays from receiver cell 0, which cast 4.
+            Box::new(move |b: &mut Vec<u8>| {
+                let at = links_at + 3 * 36 + 3 * 5 * 64;
+                b[at..at + 2].copy_from_slice(&5u16.to_le_bytes())
+            }),
+            "counts 5 rays from cell 0, which cast 4",
+        ),
+        (
+            Box::new(|b: &mut Vec<u8>| b[12..16].copy_from_slice(&15u32.to_le_bytes())),
+            "flags are 0xf",
+        ),
+        (
+            // Flags say no counts by the receiver's cell, but they are there.
+            Box::new(|b: &mut Vec<u8>| b[12..16].copy_from_slice(&3u32.to_le_bytes())),
+            "expected",
         ),
         (
             // Flags say no open sky fractions, but they are there.
@@ -159,7 +186,7 @@ fn near_field_errors_name_the_section_and_the_value() {
             "link starts decrease",
         ),
     ];
-    assert_eq!(near.len(), 16 + 4 * 6 + 3 * 36 + 3 * 5 * 64);
+    assert_eq!(near.len(), 16 + 4 * 6 + 3 * 36 + 3 * 5 * 64 + (3 + 5) * 32);
     for (f, want) in cases {
         let (_, m) = reject(&with(&*f));
         assert!(m.contains("NEAR") && m.contains(want), "{want}: {m}");

@@ -10,6 +10,10 @@
 // B0_i + delta_i + rho_i c_i (B0 itself stays as the direct pass wrote
 // it), and the tile column of a non-zero one is flagged for the gather.
 // stage 1, after the gather: H_i += c_i.
+// stage 2, after stage 1: H's deviation at each of receiver i's 16 points,
+// delta_ig = sum over its links l of u[l][g] * (B0_p + rho_p H_p) (p the
+// link's neighbour), summed per link in f32 as the CPU does
+// (NearFieldWeights::receiver_deviation); shade.frag adds it per pixel.
 
 layout(local_size_x = 64) in;
 
@@ -24,6 +28,8 @@ layout(std430, binding = 9) writeonly buffer BGather { float b_gather[]; };   //
 layout(std430, binding = 7) buffer Active { uint tile_active[]; };
 layout(std430, binding = 8) buffer H { float h[]; };                          // 3 n, channel-major
 layout(std430, binding = 10) readonly buffer Own { float own_w[]; };         // SAMPLES_PER_PATCH per patch
+layout(std430, binding = 11) readonly buffer Receiver { float recv_w[]; };   // SAMPLES_PER_PATCH per link
+layout(std430, binding = 12) writeonly buffer HPoints { float h_points[]; }; // 3 n SAMPLES_PER_PATCH, channel-major
 
 uniform uint n;
 uniform uint samples;
@@ -34,6 +40,20 @@ void main() {
     if (i >= n) return;
     if (stage == 1u) {
         for (uint c = 0u; c < 3u; c++) h[c * n + i] += corr[c * n + i];
+        return;
+    }
+    if (stage == 2u) {
+        uint S = uint(SAMPLES_PER_PATCH);
+        for (uint c = 0u; c < 3u; c++) {
+            float d[SAMPLES_PER_PATCH];
+            for (uint g = 0u; g < S; g++) d[g] = 0.0;
+            for (uint l = starts[i]; l < starts[i + 1u]; l++) {
+                uint p = link_patch[l];
+                float b = b0[c * n + p] + albedo[c * n + p] * h[c * n + p];
+                for (uint g = 0u; g < S; g++) d[g] += recv_w[l * S + g] * b;
+            }
+            for (uint g = 0u; g < S; g++) h_points[(c * n + i) * S + g] = d[g];
+        }
         return;
     }
     vec3 cv = vec3(0.0);

@@ -11,6 +11,10 @@ layout(std430, binding = 0) readonly buffer TriangleNormal { float triangle_norm
 layout(std430, binding = 6) readonly buffer H { float h[]; };              // 3 n, channel-major
 layout(std430, binding = 7) readonly buffer PatchAlbedo { float patch_albedo[]; }; // 3 n, channel-major
 layout(std430, binding = 11) readonly buffer DSky { float d_sky[]; };     // 3 n, channel-major (sky.rs)
+// H's deviation at each patch's sample points (near_field.comp stage 2)
+// and the points: 3 n SAMPLES_PER_PATCH channel-major, and 3 floats a point.
+layout(std430, binding = 12) readonly buffer HPoints { float h_points[]; };
+layout(std430, binding = 13) readonly buffer SamplePosition { float sample_position[]; };
 
 uniform sampler2D albedo_texture;
 uniform bool has_texture;
@@ -22,6 +26,7 @@ uniform vec3 eye;
 uniform uint n;
 uniform int view_mode;    // 0 final, 1 direct, 2 indirect, 3 patches, 4 weights
 uniform bool has_sky;     // D_sky is bound: the sky's direct light through the surface map
+uniform bool has_h_points; // H's deviation at the points is bound
 
 in vec3 v_position;
 in vec2 v_texcoord;
@@ -33,6 +38,24 @@ const float PI = 3.14159265358979;
 
 vec3 normal_of(uint t) {
     return vec3(triangle_normal[4u * t], triangle_normal[4u * t + 1u], triangle_normal[4u * t + 2u]);
+}
+
+// runtime/surface.rs at_points: patch p's point values at x by inverse
+// squared distance, eps an eighth of a voxel.
+vec3 at_points(uint p, vec3 x) {
+    uint S = uint(SAMPLES_PER_PATCH);
+    float eps = map_voxel_size / 8.0;
+    vec3 num = vec3(0.0);
+    float den = 0.0;
+    for (uint g = 0u; g < S; g++) {
+        uint k = p * S + g;
+        vec3 s = vec3(sample_position[3u * k], sample_position[3u * k + 1u], sample_position[3u * k + 2u]);
+        vec3 e = x - s;
+        float w = 1.0 / (e.x * e.x + e.y * e.y + e.z * e.z + eps * eps);
+        den += w;
+        num += w * vec3(h_points[k], h_points[n * S + k], h_points[2u * n * S + k]);
+    }
+    return num / den;
 }
 
 void main() {
@@ -66,6 +89,13 @@ void main() {
             hx += ww[k] * vec3(h[p], h[n + p], h[2u * n + p]);
             if (has_sky && direct_view) sx += ww[k] * vec3(d_sky[p], d_sky[n + p], d_sky[2u * n + p]);
         }
+    }
+    if (has_h_points && (view_mode == 0 || view_mode == 2)) {
+        vec3 dev = vec3(0.0);
+        for (int k = 0; k < 4; k++) {
+            if (ww[k] > 0.0) dev += ww[k] * at_points(wp[k], x);
+        }
+        hx = max(hx + dev, vec3(0.0));
     }
     vec3 dx = vec3(0.0);
     if (direct_view) dx = direct_irradiance(x, ng) + sx;

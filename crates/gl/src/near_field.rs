@@ -18,8 +18,13 @@ pub const SOURCE: &str = include_str!("../glsl/near_field.comp");
 pub struct GlNearField {
     program: glow::Program,
     /// Starts, link patches, link weights, `c`, the gather's input, each
-    /// patch's own weights for `δ` (bindings 0, 1, 2, 5, 9, 10).
-    buffers: [glow::Buffer; 6],
+    /// patch's own weights for `δ`, the links' weights at the receiver's
+    /// points, `H`'s deviation at each patch's points (bindings 0, 1, 2, 5,
+    /// 9, 10, 11, 12).
+    buffers: [glow::Buffer; 8],
+    /// Whether the bake stores the links' counts by the receiver's cell
+    /// (stage 2 runs).
+    receiver: bool,
     n: usize,
     m: usize,
     /// Each patch's sky factors at its lit points
@@ -64,11 +69,22 @@ impl GlNearField {
             storage_buffer(gl, &vec![0u8; 12 * n], glow::DYNAMIC_COPY)?,
             storage_buffer(gl, &vec![0u8; 12 * n], glow::DYNAMIC_COPY)?,
             storage_buffer(gl, bytes_of(&own), glow::STATIC_DRAW)?,
+            storage_buffer(
+                gl,
+                bytes_of(&w.receiver.iter().flatten().copied().collect::<Vec<f32>>()),
+                glow::STATIC_DRAW,
+            )?,
+            storage_buffer(
+                gl,
+                &vec![0u8; 12 * n * SAMPLES_PER_PATCH],
+                glow::DYNAMIC_COPY,
+            )?,
         ];
         super::check(gl, "uploading the near-field correction")?;
         Ok(Some(GlNearField {
             program,
             buffers,
+            receiver: !w.receiver.is_empty(),
             n,
             m: w.m,
             sky: w.sky.clone(),
@@ -88,6 +104,17 @@ impl GlNearField {
         Some(p.into_iter().flatten().collect())
     }
 
+    /// Whether stage 2 (`H`'s deviation at the receivers' points) runs.
+    pub fn has_receiver(&self) -> bool {
+        self.receiver
+    }
+
+    /// `H`'s deviation at each patch's points (3 × n × 16, channel-major;
+    /// [`radiosity_runtime::Runtime::h_points`]'s layout).
+    pub fn h_points_buffer(&self) -> glow::Buffer {
+        self.buffers[7]
+    }
+
     /// The correction `c` of the last frame (3 n, channel-major).
     pub fn c_buffer(&self) -> glow::Buffer {
         self.buffers[3]
@@ -103,8 +130,9 @@ impl GlNearField {
         self.m
     }
 
-    /// Dispatches stage 0 (`c`, the input `B0 + δ + ρ ∘ c`, tile flags) or stage 1
-    /// (`H += c`), with a barrier before it.
+    /// Dispatches stage 0 (`c`, the input `B0 + δ + ρ ∘ c`, tile flags),
+    /// stage 1 (`H += c`) or stage 2 (`H`'s deviation at the receivers'
+    /// points, from `B0` and the corrected `H`), with a barrier before it.
     pub fn dispatch(&self, gl: &glow::Context, stage: u32, io: &NearFieldInputs) {
         // SAFETY: binds, uniforms and a dispatch on the current context;
         // buffers sized for `n` patches and `m` points in `new` and by
@@ -124,6 +152,8 @@ impl GlNearField {
             gl.bind_buffer_base(b, 8, Some(io.h));
             gl.bind_buffer_base(b, 9, Some(self.buffers[4]));
             gl.bind_buffer_base(b, 10, Some(self.buffers[5]));
+            gl.bind_buffer_base(b, 11, Some(self.buffers[6]));
+            gl.bind_buffer_base(b, 12, Some(self.buffers[7]));
             let loc = |name: &str| gl.get_uniform_location(self.program, name);
             gl.uniform_1_u32(loc("n").as_ref(), self.n as u32);
             gl.uniform_1_u32(loc("samples").as_ref(), self.m as u32);

@@ -29,6 +29,7 @@ use super::sky::GlSky;
 use super::surface::GlSurfaceMap;
 use super::{bytes_of, fill_buffer, read_floats, storage_buffer, GlError};
 use glow::HasContext;
+use radiosity_bakefile::surface::SAMPLES_PER_PATCH;
 use radiosity_core::scene_config::{Camera, Light};
 use radiosity_runtime::emission::Emission;
 use radiosity_runtime::render::{Image, View};
@@ -226,6 +227,9 @@ pub struct GlRenderer {
     /// The sky changed since the emission buffer (which carries the sky's
     /// `ρ ∘ D_sky` into `B0`) was last uploaded.
     sky_changed: bool,
+    /// `H`'s deviation at the patches' points is in the near-field pass's
+    /// buffer for the last frame (shade.frag adds it per pixel).
+    h_points: bool,
     lights_buffer: glow::Buffer,
     views_buffer: glow::Buffer,
     packed: Packed,
@@ -267,6 +271,7 @@ impl GlRenderer {
             &[
                 ("LIGHT_BINDING", LIGHT_BINDING),
                 ("VIEW_BINDING", VIEW_BINDING),
+                ("SAMPLES_PER_PATCH", SAMPLES_PER_PATCH),
             ],
         )?;
         let materials = rt.scene.materials.clone();
@@ -281,6 +286,7 @@ impl GlRenderer {
             shade,
             sky,
             sky_changed: false,
+            h_points: false,
             lights_buffer: storage_buffer(gl, &[], glow::DYNAMIC_DRAW)?,
             views_buffer: storage_buffer(gl, &[], glow::DYNAMIC_DRAW)?,
             packed: Packed::default(),
@@ -380,7 +386,11 @@ impl GlRenderer {
         self.gather.dispatch(gl, input, self.direct.active_buffer());
         if let Some(nf) = &self.near {
             nf.dispatch(gl, 1, &io);
+            if nf.has_receiver() {
+                nf.dispatch(gl, 2, &io);
+            }
         }
+        self.h_points = self.near.as_ref().is_some_and(|nf| nf.has_receiver());
         self.timers.end(gl);
         // SAFETY: the gather's writes are read by the shading pass.
         unsafe { gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT) };
@@ -460,6 +470,7 @@ impl GlRenderer {
         lights: &[Light],
         scales: &BTreeMap<String, f32>,
         h: &[Vec<f32>; 3],
+        h_points: Option<&[Vec<f32>; 3]>,
     ) -> Result<GlFrameStats, GlError> {
         if h.iter().any(|c| c.len() != self.n) {
             return Err(GlError::Call(format!(
@@ -484,8 +495,23 @@ impl GlRenderer {
                 let offset = (c * 4 * self.n) as i32;
                 gl.buffer_sub_data_u8_slice(glow::SHADER_STORAGE_BUFFER, offset, bytes_of(channel));
             }
-            gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT);
         }
+        // And H's deviation at the points, where this renderer has room.
+        self.h_points = false;
+        if let (Some(p), Some(nf)) = (h_points, self.near.as_ref().filter(|nf| nf.has_receiver())) {
+            let flat: Vec<f32> = p.iter().flatten().copied().collect();
+            if flat.len() == 3 * self.n * SAMPLES_PER_PATCH {
+                fill_buffer(
+                    gl,
+                    nf.h_points_buffer(),
+                    bytes_of(&flat),
+                    glow::DYNAMIC_COPY,
+                );
+                self.h_points = true;
+            }
+        }
+        // SAFETY: a barrier on the current context.
+        unsafe { gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT) };
         super::check(gl, "the frame with H from the CPU")?;
         self.last = Some((lights.to_vec(), scales.clone(), true));
         Ok(stats)
@@ -542,8 +568,13 @@ impl GlRenderer {
             let b = glow::SHADER_STORAGE_BUFFER;
             gl.bind_buffer_base(b, 6, Some(self.gather.h_buffer()));
             gl.bind_buffer_base(b, 7, Some(self.direct.albedo_buffer()));
+            if let Some(nf) = self.near.as_ref().filter(|_| self.h_points) {
+                gl.bind_buffer_base(b, 12, Some(nf.h_points_buffer()));
+                gl.bind_buffer_base(b, 13, Some(self.direct.buffers[0]));
+            }
         }
         let binding = self.light_binding();
+        let h_points = self.h_points;
         self.shade.mipmaps = self.options.mipmaps;
         self.shade.depth_prepass = self.options.depth_prepass;
         self.timers.begin(gl, Pass::Shade);
@@ -557,7 +588,14 @@ impl GlRenderer {
             view,
             size,
             self.n,
-            |p| binding.bind(gl, p),
+            |p| {
+                binding.bind(gl, p);
+                // SAFETY: a uniform of the current program.
+                unsafe {
+                    let loc = gl.get_uniform_location(p, "has_h_points");
+                    gl.uniform_1_i32(loc.as_ref(), h_points as i32);
+                }
+            },
         );
         self.timers.end(gl);
         r
