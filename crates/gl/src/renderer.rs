@@ -636,6 +636,14 @@ impl GlRenderer {
     pub fn d(&self, gl: &glow::Context) -> [Vec<f32>; 3] {
         split(read_floats(gl, self.direct.d_buffer(), 3 * self.n), self.n)
     }
+    /// `H`'s deviation at each patch's points after the last frame (three
+    /// channels of `n × 16`; read back), when the renderer has it.
+    pub fn h_points(&self, gl: &glow::Context) -> Option<[Vec<f32>; 3]> {
+        let nf = self.near.as_ref().filter(|_| self.h_points)?;
+        let m = self.n * SAMPLES_PER_PATCH;
+        Some(split(read_floats(gl, nf.h_points_buffer(), 3 * m), m))
+    }
+
     /// The near-field correction `c` of the last frame, when the bake has
     /// one (read back).
     pub fn near_field_c(&self, gl: &glow::Context) -> Option<[Vec<f32>; 3]> {
