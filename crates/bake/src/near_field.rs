@@ -34,7 +34,7 @@ use super::error::BakeError;
 use super::form_factor::rays::{cosine_direction, with_tracer, Hit, Origins};
 use super::pieces;
 use super::voxelize::Voxelization;
-use radiosity_bakefile::near_field::{NearField, NearLink};
+use radiosity_bakefile::near_field::{face_coords, receiver_cell, NearField, NearLink};
 use radiosity_bakefile::surface::{PatchSamples, SAMPLES_PER_PATCH};
 use radiosity_core::scene::Scene;
 use rayon::prelude::*;
@@ -166,7 +166,7 @@ pub fn build(
                 Vec<NearLink>,
                 f64,
                 Vec<(u32, [u16; SAMPLES_PER_PATCH])>,
-                [[u32; SAMPLES_PER_PATCH]; 2],
+                [[u32; SAMPLES_PER_PATCH]; 3],
             );
             let row_of = |i: usize| -> Row {
                 let v = vox_of[i];
@@ -182,7 +182,7 @@ pub fn build(
                 type Counts = ([u32; SAMPLES_PER_PATCH], [u32; SAMPLES_PER_PATCH]);
                 let mut links: BTreeMap<u32, Counts> = BTreeMap::new();
                 let (mut f, mut covered) = (0usize, 0u32);
-                let mut open = [[0u32; SAMPLES_PER_PATCH]; 2];
+                let mut open = [[0u32; SAMPLES_PER_PATCH]; 3];
                 for k in 0..rays as usize {
                     let (x, nrm, partial, r) = origins.point(k, rays as usize, &mut f);
                     if partial.is_some_and(|tri| tracer.cover.covered(x, nrm, tri)) {
@@ -191,6 +191,14 @@ pub fn build(
                     }
                     let own = nearest(i, x);
                     open[0][own] += 1;
+                    // The receiver's face cell (the bakefile's "At the
+                    // receiver").
+                    let g: [f64; 3] =
+                        std::array::from_fn(|a| (x[a] - vox.grid.origin[a]) / vox.grid.size);
+                    let patch = &vox.patches[v];
+                    let (fu, fv) = face_coords(g, patch.voxel, patch.direction.axis());
+                    let face = receiver_cell(fu, fv);
+                    open[2][face] += 1;
                     let (patch, y) = match tracer.trace(x, nrm, cosine_direction(nrm, r[2], r[3])) {
                         Hit::Owned { patch, y } => (patch, y),
                         Hit::Escaped => {
@@ -210,7 +218,7 @@ pub fn build(
                         .entry(j)
                         .or_insert(([0; SAMPLES_PER_PATCH], [0; SAMPLES_PER_PATCH]));
                     e.0[cell] += 1;
-                    e.1[own] += 1;
+                    e.1[face] += 1;
                 }
                 // Counts per ray cast, in units of `rays` (rounded down, so a
                 // receiver's counts never exceed `rays`).
@@ -257,9 +265,9 @@ pub fn build(
                     .into_par_iter()
                     .map(row_of)
                     .collect();
-                for (links, per_ray, dropped, [cast, open]) in chunk {
+                for (links, per_ray, dropped, [cast, open, face]) in chunk {
                     sky.push(open_fractions(&cast, &open));
-                    cast_of.push(cast.map(|v| v as u16));
+                    cast_of.push(face.map(|v| v as u16));
                     for (j, c) in dropped {
                         for (f, &v) in far_sum[j as usize].iter_mut().zip(&c) {
                             *f += v as f64 * per_ray;

@@ -314,6 +314,10 @@ pub struct FileSummary {
     /// ([`crate::near_field`], "The sky"; `None`: not stored, and the
     /// near-field correction leaves the sky alone).
     pub near_field_sky: Option<u64>,
+    /// The bytes of the near-field section's counts by the receiver's cell
+    /// ([`crate::near_field`], "At the receiver"; `None`: not stored, and
+    /// `H` is one value per patch).
+    pub near_field_receiver: Option<u64>,
     /// The scene as stored, and where it was looked for.
     pub scene: String,
     pub scene_path: PathBuf,
@@ -380,6 +384,11 @@ pub fn describe(path: &Path) -> Result<FileSummary, LoadError> {
             .then(|| (b.sky.values.len() as u64, b.sky.to_bytes().len() as u64)),
         near_field_sky: (!b.near_field.sky.is_empty())
             .then(|| (b.near_field.sky.len() * 4 * crate::surface::SAMPLES_PER_PATCH) as u64),
+        near_field_receiver: (!b.near_field.cast.is_empty()).then(|| {
+            ((b.near_field.links.len() + b.near_field.cast.len())
+                * 2
+                * crate::surface::SAMPLES_PER_PATCH) as u64
+        }),
         scene: b.info.scene.clone(),
         scene_path,
         scene_status,
@@ -451,6 +460,13 @@ impl std::fmt::Display for FileSummary {
                 f,
                 "sky visibility: none (a sky lights nothing: bake again with ray form factors)"
             )?,
+        }
+        if let Some(bytes) = self.near_field_receiver {
+            writeln!(
+                f,
+                "the near field at the receivers' cells: {bytes} bytes ({:.2} % of the file)",
+                100.0 * bytes as f64 / self.bytes_file.max(1) as f64
+            )?;
         }
         if let Some(bytes) = self.near_field_sky {
             writeln!(

@@ -67,8 +67,13 @@
 //! Sponza at noon two thirds of the indirect image's squared error was one
 //! such foot). So each stored link also counts its rays by the
 //! *receiver's* cell they leave from (`r_ijg`, [`NearLink::from`]), and
-//! each patch its rays cast per cell (`n_ig`, [`NearField::cast`]); the run
-//! time adds at the receiver's point `g` the deviation
+//! each patch its rays cast per cell (`n_ig`, [`NearField::cast`]). These
+//! cells are not the sample points' (the sender's cells above) but a
+//! 4 × 4 grid over the receiver's voxel face ([`receiver_cell`]), so that
+//! a pixel finds its values by bilinear lookup, as a lightmap's texels,
+//! instead of searching 16 points per blended patch (measured on llvmpipe:
+//! the shading pass 217 → 590 ms on Sponza at 640 × 480 with the points).
+//! The run time adds in the receiver's cell `g` the deviation
 //!
 //! `Δ_ig = Σ_j (r_ijg / n_ig − R_ij / N_i) · B_j`, `R_ij = Σ_g r_ijg`, `N_i = Σ_g n_ig`
 //!
@@ -136,6 +141,46 @@ const FLAG_RECEIVER: u32 = 4;
 /// Bytes of one link's counts by the receiver's cell (and of one patch's
 /// rays per cell).
 const RECEIVER_LEN: usize = 2 * SAMPLES_PER_PATCH;
+
+/// Receiver cells along each side of a patch's voxel face: 4 × 4, as many
+/// as sample points (module doc, "At the receiver").
+pub const RECEIVER_SIDE: usize = 4;
+const _: () = assert!(RECEIVER_SIDE * RECEIVER_SIDE == SAMPLES_PER_PATCH);
+
+/// The coordinates of `g` (a point in grid units: `(x − origin) / size`) in
+/// the face of a patch whose voxel is `voxel` and facing axis `axis`: along
+/// the axes `(axis + 1) % 3` and `(axis + 2) % 3` (the surface map's),
+/// from its voxel's corner, 0..1 inside it.
+pub fn face_coords(g: [f64; 3], voxel: [u32; 3], axis: usize) -> (f64, f64) {
+    let (ua, va) = ((axis + 1) % 3, (axis + 2) % 3);
+    (g[ua] - f64::from(voxel[ua]), g[va] - f64::from(voxel[va]))
+}
+
+/// The receiver cell (`0..16`, row-major in `v`) of face coordinates `(u, v)`
+/// ([`face_coords`]), clamped into the face.
+pub fn receiver_cell(u: f64, v: f64) -> usize {
+    let side = RECEIVER_SIDE as f64;
+    let k = |t: f64| ((t * side).floor().max(0.0) as usize).min(RECEIVER_SIDE - 1);
+    k(u) + RECEIVER_SIDE * k(v)
+}
+
+/// Per-cell values `values` of one patch at face coordinates `(u, v)`:
+/// bilinear between the cells' centres, clamped to the outer centres (the
+/// CPU reference of shade.frag's `at_cells`).
+pub fn bilinear(values: &[f32], u: f64, v: f64) -> f32 {
+    let side = RECEIVER_SIDE as f64;
+    let t = |x: f64| (x * side - 0.5).clamp(0.0, side - 1.0);
+    let (tu, tv) = (t(u), t(v));
+    let (iu, iv) = (
+        (tu.floor() as usize).min(RECEIVER_SIDE - 2),
+        (tv.floor() as usize).min(RECEIVER_SIDE - 2),
+    );
+    let (fu, fv) = ((tu - iu as f64) as f32, (tv - iv as f64) as f32);
+    let at = |a: usize, b: usize| values[(iu + a) + RECEIVER_SIDE * (iv + b)];
+    let row0 = at(0, 0) + fu * (at(1, 0) - at(0, 0));
+    let row1 = at(0, 1) + fu * (at(1, 1) - at(0, 1));
+    row0 + fv * (row1 - row0)
+}
 
 /// One receiver's view of one near neighbour.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

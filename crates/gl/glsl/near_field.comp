@@ -10,7 +10,7 @@
 // B0_i + delta_i + rho_i c_i (B0 itself stays as the direct pass wrote
 // it), and the tile column of a non-zero one is flagged for the gather.
 // stage 1, after the gather: H_i += c_i.
-// stage 2, after stage 1: H's deviation at each of receiver i's 16 points,
+// stage 2, after stage 1: H's deviation in each of receiver i's 16 face cells,
 // delta_ig = sum over its links l of u[l][g] * (B0_p + rho_p H_p) (p the
 // link's neighbour), summed per link in f32 as the CPU does
 // (NearFieldWeights::receiver_deviation); shade.frag adds it per pixel.

@@ -11,10 +11,9 @@ layout(std430, binding = 0) readonly buffer TriangleNormal { float triangle_norm
 layout(std430, binding = 6) readonly buffer H { float h[]; };              // 3 n, channel-major
 layout(std430, binding = 7) readonly buffer PatchAlbedo { float patch_albedo[]; }; // 3 n, channel-major
 layout(std430, binding = 11) readonly buffer DSky { float d_sky[]; };     // 3 n, channel-major (sky.rs)
-// H's deviation at each patch's sample points (near_field.comp stage 2)
-// and the points: 3 n SAMPLES_PER_PATCH channel-major, and 3 floats a point.
+// H's deviation in each patch's 4 x 4 face cells (near_field.comp stage
+// 2): 3 n SAMPLES_PER_PATCH, channel-major.
 layout(std430, binding = 12) readonly buffer HPoints { float h_points[]; };
-layout(std430, binding = 13) readonly buffer SamplePosition { float sample_position[]; };
 
 uniform sampler2D albedo_texture;
 uniform bool has_texture;
@@ -26,7 +25,7 @@ uniform vec3 eye;
 uniform uint n;
 uniform int view_mode;    // 0 final, 1 direct, 2 indirect, 3 patches, 4 weights
 uniform bool has_sky;     // D_sky is bound: the sky's direct light through the surface map
-uniform bool has_h_points; // H's deviation at the points is bound
+uniform bool has_h_points; // H's deviation in the face cells is bound
 
 in vec3 v_position;
 in vec2 v_texcoord;
@@ -40,22 +39,35 @@ vec3 normal_of(uint t) {
     return vec3(triangle_normal[4u * t], triangle_normal[4u * t + 1u], triangle_normal[4u * t + 2u]);
 }
 
-// runtime/surface.rs at_points: patch p's point values at x by inverse
-// squared distance, eps an eighth of a voxel.
-vec3 at_points(uint p, vec3 x) {
+// runtime/surface.rs at_cells for one patch: its cells' values
+// bilinearly at x's place in its voxel face (bakefile near_field.rs
+// face_coords, bilinear), clamped to the outer cells' centres.
+vec3 at_cells(uint p, vec3 x) {
     uint S = uint(SAMPLES_PER_PATCH);
-    float eps = map_voxel_size / 8.0;
-    vec3 num = vec3(0.0);
-    float den = 0.0;
-    for (uint g = 0u; g < S; g++) {
-        uint k = p * S + g;
-        vec3 s = vec3(sample_position[3u * k], sample_position[3u * k + 1u], sample_position[3u * k + 2u]);
-        vec3 e = x - s;
-        float w = 1.0 / (e.x * e.x + e.y * e.y + e.z * e.z + eps * eps);
-        den += w;
-        num += w * vec3(h_points[k], h_points[n * S + k], h_points[2u * n * S + k]);
+    vec3 g = (x - map_origin) / map_voxel_size;
+    uint pxy = patch_voxel[2u * p];
+    vec3 pv = vec3(float(pxy & 0xffffu), float(pxy >> 16), float(patch_voxel[2u * p + 1u]));
+    uint axis = patch_direction[p] / 2u;
+    uint ua = (axis + 1u) % 3u;
+    uint va = (axis + 2u) % 3u;
+    float tu = clamp((g[ua] - pv[ua]) * 4.0 - 0.5, 0.0, 3.0);
+    float tv = clamp((g[va] - pv[va]) * 4.0 - 0.5, 0.0, 3.0);
+    uint iu = min(uint(floor(tu)), 2u);
+    uint iv = min(uint(floor(tv)), 2u);
+    float fu = tu - float(iu);
+    float fv = tv - float(iv);
+    vec3 r = vec3(0.0);
+    for (uint c = 0u; c < 3u; c++) {
+        uint base = (c * n + p) * S;
+        float a = h_points[base + iu + 4u * iv];
+        float b = h_points[base + iu + 1u + 4u * iv];
+        float d = h_points[base + iu + 4u * (iv + 1u)];
+        float e = h_points[base + iu + 1u + 4u * (iv + 1u)];
+        float row0 = a + fu * (b - a);
+        float row1 = d + fu * (e - d);
+        r[c] = row0 + fv * (row1 - row0);
     }
-    return num / den;
+    return r;
 }
 
 void main() {
@@ -93,7 +105,7 @@ void main() {
     if (has_h_points && (view_mode == 0 || view_mode == 2)) {
         vec3 dev = vec3(0.0);
         for (int k = 0; k < 4; k++) {
-            if (ww[k] > 0.0) dev += ww[k] * at_points(wp[k], x);
+            if (ww[k] > 0.0) dev += ww[k] * at_cells(wp[k], x);
         }
         hx = max(hx + dev, vec3(0.0));
     }

@@ -109,7 +109,7 @@ impl GlNearField {
         self.receiver
     }
 
-    /// `H`'s deviation at each patch's points (3 × n × 16, channel-major;
+    /// `H`'s deviation in each patch's face cells (3 × n × 16, channel-major;
     /// [`radiosity_runtime::Runtime::h_points`]'s layout).
     pub fn h_points_buffer(&self) -> glow::Buffer {
         self.buffers[7]

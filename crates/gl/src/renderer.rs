@@ -227,7 +227,7 @@ pub struct GlRenderer {
     /// The sky changed since the emission buffer (which carries the sky's
     /// `ρ ∘ D_sky` into `B0`) was last uploaded.
     sky_changed: bool,
-    /// `H`'s deviation at the patches' points is in the near-field pass's
+    /// `H`'s deviation in the patches' face cells is in the near-field pass's
     /// buffer for the last frame (shade.frag adds it per pixel).
     h_points: bool,
     lights_buffer: glow::Buffer,
@@ -496,7 +496,7 @@ impl GlRenderer {
                 gl.buffer_sub_data_u8_slice(glow::SHADER_STORAGE_BUFFER, offset, bytes_of(channel));
             }
         }
-        // And H's deviation at the points, where this renderer has room.
+        // And H's deviation in the face cells, where this renderer has room.
         self.h_points = false;
         if let (Some(p), Some(nf)) = (h_points, self.near.as_ref().filter(|nf| nf.has_receiver())) {
             let flat: Vec<f32> = p.iter().flatten().copied().collect();
@@ -570,7 +570,6 @@ impl GlRenderer {
             gl.bind_buffer_base(b, 7, Some(self.direct.albedo_buffer()));
             if let Some(nf) = self.near.as_ref().filter(|_| self.h_points) {
                 gl.bind_buffer_base(b, 12, Some(nf.h_points_buffer()));
-                gl.bind_buffer_base(b, 13, Some(self.direct.buffers[0]));
             }
         }
         let binding = self.light_binding();
@@ -636,7 +635,7 @@ impl GlRenderer {
     pub fn d(&self, gl: &glow::Context) -> [Vec<f32>; 3] {
         split(read_floats(gl, self.direct.d_buffer(), 3 * self.n), self.n)
     }
-    /// `H`'s deviation at each patch's points after the last frame (three
+    /// `H`'s deviation in each patch's face cells after the last frame (three
     /// channels of `n × 16`; read back), when the renderer has it.
     pub fn h_points(&self, gl: &glow::Context) -> Option<[Vec<f32>; 3]> {
         let nf = self.near.as_ref().filter(|_| self.h_points)?;

@@ -213,7 +213,7 @@ pub struct Runtime {
     d: [Vec<f32>; 3],
     b0: [Vec<f32>; 3],
     h: [Vec<f32>; 3],
-    /// `Δ` at each patch's 16 points after the last frame
+    /// `Δ` in each patch's 16 face cells after the last frame
     /// ([`NearFieldWeights::receiver_deviation`]; `None` without).
     h_points: Option<[Vec<f32>; 3]>,
     frames: u64,
@@ -416,10 +416,11 @@ impl Runtime {
         self.sky.as_ref()
     }
 
-    /// The deviation of `H` at each patch's 16 sample points after the last
+    /// The deviation of `H` in each patch's 16 face cells after the last
     /// frame (three channels, `n × 16`; [`NearFieldWeights::receiver_deviation`]),
-    /// which pixels add interpolated from them; `None` when the bake stores
-    /// no counts by the receiver's cell or the correction is off.
+    /// which pixels add bilinearly ([`surface::at_cells`]); `None` when the
+    /// bake stores no counts by the receiver's cell or the correction is
+    /// off.
     pub fn h_points(&self) -> Option<&[Vec<f32>; 3]> {
         self.h_points.as_ref()
     }

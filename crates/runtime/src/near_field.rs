@@ -44,8 +44,9 @@ pub struct NearFieldWeights {
     /// mean is 1.
     pub sky: Vec<[f32; SAMPLES_PER_PATCH]>,
     /// Per link (empty when the bake stores no counts by the receiver's
-    /// cell): the weight of the neighbour's exitance at each of the
-    /// receiver's 16 points, `r_ijg / n_ig − R_ij / N_i`
+    /// cell): the weight of the neighbour's exitance in each of the
+    /// receiver's 16 face cells, `r_ijg / n_ig − R_ij / N_i` (a cell no ray
+    /// left from takes its nearest cell's)
     /// ([`radiosity_bakefile::near_field`], "At the receiver").
     pub receiver: Vec<[f32; SAMPLES_PER_PATCH]>,
 }
@@ -127,16 +128,21 @@ impl NearFieldWeights {
             out.receiver = Vec::with_capacity(nf.links.len());
             for (i, cast) in nf.cast.iter().enumerate() {
                 let total: f64 = cast.iter().map(|&v| f64::from(v)).sum();
+                // A cell no ray left from (the face beyond the patch's
+                // pieces) takes its nearest cell's weight, so that the
+                // lookup between cells blends values, not zeros.
+                let fill = fill_of(cast);
                 for l in nf.links_of(i) {
                     let from: f64 = l.from.iter().map(|&v| f64::from(v)).sum();
                     let mean = if total > 0.0 { from / total } else { 0.0 };
-                    out.receiver.push(std::array::from_fn(|g| {
+                    let w: [f32; SAMPLES_PER_PATCH] = std::array::from_fn(|g| {
                         if cast[g] == 0 {
                             0.0
                         } else {
                             (f64::from(l.from[g]) / f64::from(cast[g]) - mean) as f32
                         }
-                    }));
+                    });
+                    out.receiver.push(std::array::from_fn(|g| w[fill[g]]));
                 }
             }
         }
@@ -158,8 +164,8 @@ impl NearFieldWeights {
         (!self.sky.is_empty()).then(|| sky_points(&self.sky, self.m, d))
     }
 
-    /// The deviation `Δ` of `H` at each receiver's 16 points (three
-    /// channels, `n × 16`: patch `i`'s point `g` at `16 i + g`) from the
+    /// The deviation `Δ` of `H` in each receiver's 16 face cells (three
+    /// channels, `n × 16`: patch `i`'s cell `g` at `16 i + g`) from the
     /// frame's `B0` and `H` (matrix order), its near neighbours' whole
     /// exitance `B0_j + ρ_j H_j` weighted by [`NearFieldWeights::receiver`]
     /// (summed per receiver in link order, f32, as the shader does);
@@ -319,6 +325,29 @@ pub fn sky_points(
             .zip(factors)
             .flat_map(|(&v, f)| f[..m].iter().map(move |&x| v * x))
             .collect()
+    })
+}
+
+/// For each receiver cell, the cell whose values it takes: itself when rays
+/// left from it, else the nearest cell that cast some (grid distance, the
+/// lowest index on ties; itself when none did).
+fn fill_of(cast: &[u16; SAMPLES_PER_PATCH]) -> [usize; SAMPLES_PER_PATCH] {
+    let side = radiosity_bakefile::near_field::RECEIVER_SIDE;
+    std::array::from_fn(|g| {
+        if cast[g] > 0 {
+            return g;
+        }
+        let d2 = |k: usize| {
+            let (a, b) = (
+                (g % side) as i64 - (k % side) as i64,
+                (g / side) as i64 - (k / side) as i64,
+            );
+            a * a + b * b
+        };
+        (0..SAMPLES_PER_PATCH)
+            .filter(|&k| cast[k] > 0)
+            .min_by_key(|&k| (d2(k), k))
+            .unwrap_or(g)
     })
 }
 

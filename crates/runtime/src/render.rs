@@ -183,7 +183,7 @@ pub fn render(
         .filter(|_| matches!(view, View::Final | View::Direct))
         .map(|s| s.prepared());
     let map = &rt.baked.surface_map;
-    let (h_points, samples) = (rt.h_points(), &rt.baked.samples);
+    let h_points = rt.h_points();
     let rows: Vec<(Vec<[f32; 3]>, Vec<bool>, RenderStats)> = (0..height)
         .into_par_iter()
         .map(|py| {
@@ -249,7 +249,7 @@ pub fn render(
                 if let Some(hp) = h_points {
                     // How H spreads over the receiver near its neighbours
                     // (never below 0: a deviation larger than H is noise).
-                    let dev = surface::at_points(&w, samples, map.voxel_size, xf, hp);
+                    let dev = surface::at_cells(&w, map, xf, hp);
                     for c in 0..3 {
                         hx[c] = (hx[c] + dev[c]).max(0.0);
                     }

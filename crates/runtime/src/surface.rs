@@ -16,9 +16,8 @@
 //! both sides find the same patches with the same weights, so `H` is
 //! continuous there.
 
-use radiosity_bakefile::surface::{
-    offset_slot, voxel_key, PatchSamples, SurfaceMap, NONE, SAMPLES_PER_PATCH,
-};
+use radiosity_bakefile::near_field::{bilinear, face_coords};
+use radiosity_bakefile::surface::{offset_slot, voxel_key, SurfaceMap, NONE, SAMPLES_PER_PATCH};
 
 /// Up to four (patch in matrix order, weight) pairs, weights summing to 1;
 /// unused slots have weight 0.
@@ -137,41 +136,25 @@ pub fn apply(w: &Weights, values: &[Vec<f32>; 3]) -> [f32; 3] {
     h
 }
 
-/// Per-point values (three channels, `n × 16`: patch `p`'s sample point
+/// Per-cell values (three channels, `n × 16`: patch `p`'s receiver cell
 /// `g` at `16 p + g`, such as [`crate::Runtime::h_points`]) at `x`: each
-/// patch of `w` contributes its points' values by inverse squared
-/// distance, `1 / (|x − s_g|² + ε²)` with `ε` an eighth of a voxel (the
-/// points lie about a quarter voxel apart: a pixel on a point takes mostly
-/// its value, one between points a blend, smooth everywhere), weighted as
-/// `w` weighs the patches. The CPU reference of shade.frag's
-/// `at_points`.
-pub fn at_points(
-    w: &Weights,
-    samples: &PatchSamples,
-    voxel_size: f64,
-    x: [f32; 3],
-    values: &[Vec<f32>; 3],
-) -> [f32; 3] {
-    let eps = voxel_size as f32 / 8.0;
+/// patch of `w` contributes its cells' values bilinearly at `x`'s place in
+/// its voxel face ([`radiosity_bakefile::near_field::bilinear`]), weighted
+/// as `w` weighs the patches. The CPU reference of shade.frag's
+/// `at_cells`.
+pub fn at_cells(w: &Weights, map: &SurfaceMap, x: [f32; 3], values: &[Vec<f32>; 3]) -> [f32; 3] {
+    let g: [f64; 3] = std::array::from_fn(|k| (x[k] as f64 - map.origin[k]) / map.voxel_size);
     let mut out = [0.0f32; 3];
     for &(p, wt) in w {
         if wt <= 0.0 {
             continue;
         }
-        let base = p as usize * SAMPLES_PER_PATCH;
-        let mut num = [0.0f32; 3];
-        let mut den = 0.0f32;
-        for g in 0..SAMPLES_PER_PATCH {
-            let s = samples.position[base + g];
-            let d2 = (0..3).map(|k| (x[k] - s[k]) * (x[k] - s[k])).sum::<f32>();
-            let k = 1.0 / (d2 + eps * eps);
-            den += k;
-            for c in 0..3 {
-                num[c] += k * values[c][base + g];
-            }
-        }
+        let p = p as usize;
+        let voxel = map.patch_voxel[p].map(u32::from);
+        let (u, v) = face_coords(g, voxel, map.patch_direction[p] as usize / 2);
+        let base = p * SAMPLES_PER_PATCH;
         for c in 0..3 {
-            out[c] += wt * num[c] / den;
+            out[c] += wt * bilinear(&values[c][base..base + SAMPLES_PER_PATCH], u, v);
         }
     }
     out
