@@ -51,7 +51,7 @@ fn runtime(baked: Baked, obj: &std::path::Path) -> Runtime {
 /// at that very point (1,024 paths: its noise is ~3 % of a point's value),
 /// and against `H_i` alone, which is what every point of the patch got
 /// before. Measured: the deviations take the wall points' relative RMS
-/// error from 24.2 % to 11.4 % (the profile's rise towards the floor
+/// error from 24.2 % to 10.9 % (the profile's rise towards the floor
 /// within each 0.5 m patch); asserted: below half of it, and below 15 %.
 #[test]
 fn the_deviation_at_the_points_follows_the_path_tracer() {

@@ -165,15 +165,19 @@ pub fn receiver_cell(u: f64, v: f64) -> usize {
 }
 
 /// Per-cell values `values` of one patch at face coordinates `(u, v)`:
-/// bilinear between the cells' centres, clamped to the outer centres (the
-/// CPU reference of shade.frag's `at_cells`).
+/// bilinear between the cells' centres, extended linearly from the outer
+/// centres to the face's edges and constant beyond (the CPU reference of
+/// shade.frag's `at_cells`). Extending rather than holding the outer
+/// centres' values follows a rise towards a face's edge (a pillar's foot):
+/// Sponza at noon's indirect image 20.0 % from Mitsuba 3 held, 19.5 %
+/// extended.
 pub fn bilinear(values: &[f32], u: f64, v: f64) -> f32 {
     let side = RECEIVER_SIDE as f64;
-    let t = |x: f64| (x * side - 0.5).clamp(0.0, side - 1.0);
+    let t = |x: f64| (x * side - 0.5).clamp(-0.5, side - 0.5);
     let (tu, tv) = (t(u), t(v));
     let (iu, iv) = (
-        (tu.floor() as usize).min(RECEIVER_SIDE - 2),
-        (tv.floor() as usize).min(RECEIVER_SIDE - 2),
+        (tu.floor().max(0.0) as usize).min(RECEIVER_SIDE - 2),
+        (tv.floor().max(0.0) as usize).min(RECEIVER_SIDE - 2),
     );
     let (fu, fv) = ((tu - iu as f64) as f32, (tv - iv as f64) as f32);
     let at = |a: usize, b: usize| values[(iu + a) + RECEIVER_SIDE * (iv + b)];
@@ -554,5 +558,41 @@ impl NearField {
                 })
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Cell values of a plane `a + b u + c v` (taken at the cells'
+    /// centres) come back as that plane anywhere in the face, edges
+    /// included (the lookup extends linearly to them), and constant beyond.
+    #[test]
+    fn the_cells_lookup_reproduces_a_plane() {
+        let plane = |u: f64, v: f64| 0.5 + 2.0 * u - 3.0 * v;
+        let side = RECEIVER_SIDE as f64;
+        let values: Vec<f32> = (0..SAMPLES_PER_PATCH)
+            .map(|g| {
+                let (u, v) = (
+                    ((g % RECEIVER_SIDE) as f64 + 0.5) / side,
+                    ((g / RECEIVER_SIDE) as f64 + 0.5) / side,
+                );
+                plane(u, v) as f32
+            })
+            .collect();
+        for (u, v) in [
+            (0.0, 0.0),
+            (0.3, 0.7),
+            (1.0, 0.5),
+            (0.125, 0.875),
+            (0.99, 0.01),
+        ] {
+            let got = f64::from(bilinear(&values, u, v));
+            assert!((got - plane(u, v)).abs() < 1e-5, "({u}, {v}): {got}");
+        }
+        assert_eq!(bilinear(&values, 1.4, -0.2), bilinear(&values, 1.0, 0.0));
+        assert_eq!(receiver_cell(0.3, 0.7), 1 + 4 * 2);
+        assert_eq!(receiver_cell(-0.1, 1.2), 4 * 3);
     }
 }

@@ -41,7 +41,8 @@ vec3 normal_of(uint t) {
 
 // runtime/surface.rs at_cells for one patch: its cells' values
 // bilinearly at x's place in its voxel face (bakefile near_field.rs
-// face_coords, bilinear), clamped to the outer cells' centres.
+// face_coords, bilinear), extended linearly from the outer cells' centres
+// to the face's edges.
 vec3 at_cells(uint p, vec3 x) {
     uint S = uint(SAMPLES_PER_PATCH);
     vec3 g = (x - map_origin) / map_voxel_size;
@@ -50,10 +51,10 @@ vec3 at_cells(uint p, vec3 x) {
     uint axis = patch_direction[p] / 2u;
     uint ua = (axis + 1u) % 3u;
     uint va = (axis + 2u) % 3u;
-    float tu = clamp((g[ua] - pv[ua]) * 4.0 - 0.5, 0.0, 3.0);
-    float tv = clamp((g[va] - pv[va]) * 4.0 - 0.5, 0.0, 3.0);
-    uint iu = min(uint(floor(tu)), 2u);
-    uint iv = min(uint(floor(tv)), 2u);
+    float tu = clamp((g[ua] - pv[ua]) * 4.0 - 0.5, -0.5, 3.5);
+    float tv = clamp((g[va] - pv[va]) * 4.0 - 0.5, -0.5, 3.5);
+    uint iu = min(uint(max(floor(tu), 0.0)), 2u);
+    uint iv = min(uint(max(floor(tv), 0.0)), 2u);
     float fu = tu - float(iu);
     float fv = tv - float(iv);
     vec3 r = vec3(0.0);
