@@ -457,6 +457,39 @@ pub fn run(
         t_all / t_lit,
         gb(&s_lit, t_lit) / 1e9
     )?;
+    // The probes' update, as a changed frame runs it after the terms.
+    if !rt.baked.probes.is_empty() {
+        let (_, t_probes) = best(options.repeat, || rt.update_probes(None));
+        let pr = &rt.baked.probes;
+        let used = pr.states.iter().filter(|s| s.is_used()).count();
+        let entries = pr.patches.len() + pr.sky_cells.len();
+        writeln!(
+            out,
+            "| probe update, every probe ({} probes, {used} used, {} patch and {} sky entries) | {:.3} ms | {:.1} % of the every-column gather, {:.1} % of the lit-column one; {:.2e} entries/s |",
+            pr.len(),
+            pr.patches.len(),
+            pr.sky_cells.len(),
+            1e3 * t_probes,
+            100.0 * t_probes / t_all,
+            100.0 * t_probes / t_lit,
+            entries as f64 / t_probes
+        )?;
+        // The probes one moving object reads: a sphere of one probe
+        // spacing's diameter at the camera's target.
+        let c = config.camera.target.map(f64::from);
+        let r = 0.5 * f64::from(pr.grid.spacing);
+        let which = crate::runtime::probes::needed(&pr.grid, c.map(|v| v - r), c.map(|v| v + r));
+        let k = which.len();
+        let (_, t_one) = best(options.repeat, || rt.update_probes(Some(&which)));
+        writeln!(
+            out,
+            "| probe update, the {k} probes one object reads (a {:.2}-unit sphere at the camera's target) | {:.3} ms | {:.1} % of the every-column gather, {:.1} % of the lit-column one |",
+            2.0 * r,
+            1e3 * t_one,
+            100.0 * t_one / t_all,
+            100.0 * t_one / t_lit
+        )?;
+    }
     // One spot light lighting at most 10 % of the patches: from the camera
     // towards its target, the cone narrowed until it does.
     let cam = &config.camera;

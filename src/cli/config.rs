@@ -421,6 +421,10 @@ impl BakeArgs {
             as_wound: self.as_wound,
             near_field_rays: self.near_field_rays,
             near_field_min_form_factor: self.near_field_min_form_factor,
+            probes: radiosity::bake::probes::ProbeOptions {
+                spacing_voxels: self.probe_spacing,
+                rays: self.probe_rays,
+            },
             output: self.output,
             export: self.export,
         };
@@ -461,6 +465,8 @@ pub(crate) fn flag_of(option: &str) -> Option<&'static str> {
         "form-factor rays per patch" => "--ff-rays-per-patch",
         "near-field rays per patch" => "--near-field-rays",
         "near-field minimum form factor" => "--near-field-min-form-factor",
+        "probe spacing in voxels" => "--probe-spacing",
+        "rays per probe" => "--probe-rays",
         "bounces" => "--bounces",
         _ => return None,
     })

@@ -47,6 +47,8 @@ pub struct Parts<'a> {
     /// The sky visibility per patch in matrix order, and the rays per
     /// patch it came from (empty: none).
     pub sky: (&'a [Vec<(u8, f32)>], u32),
+    /// The irradiance probes, patches in matrix order (none: no section).
+    pub probes: radiosity_bakefile::probes::Probes,
 }
 
 /// The bake file of `p`.
@@ -107,6 +109,7 @@ pub fn bake_file(p: Parts) -> BakeFile {
         } else {
             SkyVisibility::from_lists(p.sky.1, p.sky.0)
         },
+        probes: p.probes,
         info_json: serde_json::to_string(&info).expect("info serializes"),
     }
 }

@@ -89,6 +89,8 @@ pub struct BakeConfig {
     /// (their light still counts, through the far weights;
     /// [`radiosity_bakefile::near_field`]).
     pub near_field_min_form_factor: f64,
+    /// The irradiance probes ([`crate::probes`]).
+    pub probes: crate::probes::ProbeOptions,
     /// The bake file to write, if any.
     #[serde(skip)]
     pub output: Option<PathBuf>,
@@ -115,6 +117,7 @@ impl BakeConfig {
             as_wound: false,
             near_field_rays: crate::near_field::DEFAULT_RAYS,
             near_field_min_form_factor: crate::near_field::MIN_FORM_FACTOR,
+            probes: crate::probes::ProbeOptions::default(),
             output: None,
             export: None,
         }
@@ -124,7 +127,7 @@ impl BakeConfig {
     /// key; not the device, the output or the exports).
     pub fn cache_key(&self) -> String {
         format!(
-            "v{} {:?} {:?} {:?} {:?} {:?} {} near{} far{}{}",
+            "v{} {:?} {:?} {:?} {:?} {:?} {} near{} far{} probes{:?}{}",
             radiosity_bakefile::FORMAT_VERSION,
             self.resolution,
             self.form_factor,
@@ -134,6 +137,7 @@ impl BakeConfig {
             self.error_lights,
             self.near_field_rays,
             self.near_field_min_form_factor,
+            self.probes,
             if self.two_sided { " two-sided" } else { "" }
         )
     }
@@ -149,6 +153,7 @@ impl BakeConfig {
             });
         }
         crate::near_field::check_options(self.near_field_rays, self.near_field_min_form_factor)?;
+        self.probes.validate()?;
         if let super::transfer::Bounces::K(k) = self.transfer.bounces {
             let most = super::transfer::MAX_USEFUL_BOUNCES;
             if k == 0 || k > most {

@@ -31,6 +31,7 @@ pub mod mesh_map;
 pub mod near_field;
 pub mod pieces;
 pub mod preview;
+pub mod probes;
 pub mod reorder;
 pub mod report;
 pub mod solve;
@@ -180,6 +181,18 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> Result<BakeOu
         )
     })?;
 
+    let (probes, probe_stats) = if config.probes.enabled() {
+        progress(&format!(
+            "irradiance probes ({} rays each)",
+            config.probes.rays
+        ));
+        timed_stage(&mut stages, "probes", false, || {
+            probes::build(&scene, &vox, &patch_index_of, &config.probes)
+        })?
+    } else {
+        Default::default()
+    };
+
     // Stage 8: the bake file (`assemble`), written, and the inspection
     // files (`export`).
     let file = assemble::bake_file(assemble::Parts {
@@ -200,6 +213,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> Result<BakeOu
         samples,
         near_field,
         sky: (&ff.sky, config.form_factor.rays_per_patch),
+        probes,
     });
     if let Some(out) = &config.output {
         progress(&format!("writing {}", out.display()));
@@ -242,6 +256,7 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> Result<BakeOu
             mesh_map: map.stats,
             surface_map: surface_stats,
             near_field: near_field_stats,
+            probes: probe_stats,
             output: config.output.clone(),
             stages,
         },

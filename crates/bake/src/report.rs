@@ -130,6 +130,8 @@ pub struct BakeReport {
     pub mesh_map: MeshMapStats,
     pub surface_map: SurfaceMapStats,
     pub near_field: crate::near_field::NearFieldStats,
+    /// The irradiance probes (all zero without).
+    pub probes: crate::probes::ProbeStats,
     /// The bake file written, if any.
     pub output: Option<PathBuf>,
     pub stages: Vec<StageTime>,

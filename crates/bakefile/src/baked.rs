@@ -75,6 +75,9 @@ pub struct Baked {
     /// The patches' sky visibility, in matrix order (empty for a bake made
     /// without it: a sky then lights nothing).
     pub sky: crate::sky::SkyVisibility,
+    /// The irradiance probes, their patches in matrix order (none when
+    /// the bake has no `PROB` section).
+    pub probes: crate::probes::Probes,
     pub options: OptionsRecord,
     pub info: BakeInfo,
     pub scene_hash: SceneHash,
@@ -185,6 +188,7 @@ impl Baked {
             samples: bf.samples.reordered(&order),
             near_field: bf.near_field.reordered(&order, &new_of),
             sky: bf.sky.reordered(&order),
+            probes: bf.probes.renumbered(&new_of),
             patches,
             matrix,
             order,

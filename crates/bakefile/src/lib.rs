@@ -54,6 +54,7 @@
 //! | `PSMP` | the patches' sample points ([`surface`])                                  |
 //! | `NEAR` | optional: the near-field correction ([`near_field`] gives the layout)     |
 //! | `SKYV` | optional: the patches' sky visibility ([`sky`] gives the layout)           |
+//! | `PROB` | optional: irradiance probes and their transfers ([`probes`] gives the layout) |
 //! | `INFO` | the bake report record [`records::BakeInfo`], JSON text                   |
 //!
 //! Sections are found through the table, never by position; the writer
@@ -97,6 +98,7 @@ pub mod codec;
 pub mod container;
 pub mod hash;
 pub mod near_field;
+pub mod probes;
 pub mod records;
 pub mod section_error;
 pub mod sky;
@@ -111,6 +113,7 @@ pub use section_error::SectionError;
 
 use container::{encode_sections, le_u32, write_atomic};
 use near_field::NearField;
+use probes::Probes;
 use serde::Serialize;
 use sky::SkyVisibility;
 use std::path::Path;
@@ -179,6 +182,8 @@ pub mod tag {
     /// The patches' sky visibility (optional: a file without it loads with
     /// none).
     pub const SKY: [u8; 4] = *b"SKYV";
+    /// Irradiance probes (optional: a file without them loads with none).
+    pub const PROBES: [u8; 4] = *b"PROB";
     /// Bake report, JSON.
     pub const INFO: [u8; 4] = *b"INFO";
 
@@ -220,6 +225,7 @@ pub fn section_what(t: [u8; 4]) -> &'static str {
         tag::SAMPLES => "patch sample points",
         tag::NEAR_FIELD => "near-field correction",
         tag::SKY => "sky visibility",
+        tag::PROBES => "irradiance probes",
         tag::INFO => "bake report",
         _ => "unknown section",
     }
@@ -327,6 +333,9 @@ pub struct BakeFile {
     /// The patches' sky visibility ([`sky`]), in file order; written only
     /// when not empty.
     pub sky: SkyVisibility,
+    /// The irradiance probes ([`probes`]), their patches in file order;
+    /// written only when there are some.
+    pub probes: Probes,
     /// Free-form bake report, JSON text.
     pub info_json: String,
 }
@@ -472,6 +481,9 @@ pub fn validate(bf: &BakeFile, file: &str) -> Result<(), BakeFileError> {
         .check(n)
         .map_err(|d| invalid(file, tag::NEAR_FIELD, d))?;
     bf.sky.check(n).map_err(|d| invalid(file, tag::SKY, d))?;
+    bf.probes
+        .check(n)
+        .map_err(|d| invalid(file, tag::PROBES, d))?;
     for (v, row) in bf.mesh_map.iter().enumerate() {
         let mut sum = 0.0f64;
         for (s, &(p, w)) in row.iter().enumerate() {
@@ -562,6 +574,7 @@ fn encode_named(bf: &BakeFile, file: &str) -> Result<Vec<u8>, BakeFileError> {
     let psmp = bf.samples.to_bytes();
     let near = bf.near_field.to_bytes();
     let sky = bf.sky.to_bytes();
+    let probes = bf.probes.to_bytes();
     let mut sections: Vec<([u8; 4], &[u8])> = vec![
         (tag::OPTIONS, bf.options_json.as_bytes()),
         (tag::SCENE_HASH, &hash),
@@ -588,11 +601,14 @@ fn encode_named(bf: &BakeFile, file: &str) -> Result<Vec<u8>, BakeFileError> {
     if !bf.sky.is_empty() {
         sections.push((tag::SKY, &sky));
     }
+    if !bf.probes.is_empty() {
+        sections.push((tag::PROBES, &probes));
+    }
     sections.push((tag::INFO, bf.info_json.as_bytes()));
     debug_assert!(sections
         .iter()
         .map(|s| s.0)
-        .filter(|t| ![tag::NEAR_FIELD, tag::SKY, tag::COLUMN_SCALES].contains(t))
+        .filter(|t| ![tag::NEAR_FIELD, tag::SKY, tag::PROBES, tag::COLUMN_SCALES].contains(t))
         .eq(tag::REQUIRED));
     Ok(encode_sections(&sections))
 }
@@ -773,6 +789,10 @@ pub fn parse_named(bytes: &[u8], file: &str) -> Result<BakeFile, BakeFileError> 
                 SkyVisibility::from_bytes(s.bytes, n).map_err(|d| invalid(file, tag::SKY, d))?
             }
             None => SkyVisibility::none(),
+        },
+        probes: match secs.iter().find(|s| s.tag == tag::PROBES) {
+            Some(s) => Probes::from_bytes(s.bytes, n).map_err(|d| invalid(file, tag::PROBES, d))?,
+            None => Probes::none(),
         },
         mesh_map,
         info_json,

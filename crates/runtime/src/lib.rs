@@ -71,6 +71,7 @@ pub mod emission;
 pub mod gather;
 pub mod near_field;
 pub mod open;
+pub mod probes;
 pub mod render;
 pub mod sky;
 pub mod surface;
@@ -165,6 +166,9 @@ pub struct FrameStats {
     pub seconds_gather: f64,
     /// Seconds of the near-field correction (before the gathers).
     pub seconds_near_field: f64,
+    /// Seconds of the probes' update (after the terms are summed; 0 when
+    /// the bake has no probes or nothing changed).
+    pub seconds_probes: f64,
     pub seconds_total: f64,
     /// Terms (lights, emission) recomputed, and reused.
     pub terms_computed: usize,
@@ -216,6 +220,15 @@ pub struct Runtime {
     /// `Δ` in each patch's 16 face cells after the last frame
     /// ([`NearFieldWeights::receiver_deviation`]; `None` without).
     h_points: Option<[Vec<f32>; 3]>,
+    /// The probes' coefficients after the last frame (empty without
+    /// probes), and the sky's cell radiances they see.
+    probe_sh: Vec<probes::Sh>,
+    sky_cells: Option<Vec<[f32; 3]>>,
+    /// The probes' entries decoded, the patches' albedos, and which probes
+    /// the frames update (`None`: all).
+    probe_decoded: probes::Decoded,
+    probe_albedo: Vec<[f32; 3]>,
+    probe_demand: Option<Vec<usize>>,
     frames: u64,
     /// The options the cached terms were computed with (culling, sample
     /// points): a frame after either changed recomputes every term.
@@ -256,6 +269,11 @@ impl Runtime {
             b0: std::array::from_fn(|_| vec![0.0; n]),
             h: std::array::from_fn(|_| vec![0.0; n]),
             h_points: None,
+            probe_sh: Vec::new(),
+            sky_cells: None,
+            probe_decoded: probes::Decoded::new(&baked.probes),
+            probe_albedo: baked.patches.iter().map(|p| p.albedo).collect(),
+            probe_demand: None,
             frames: 0,
             cached_with: (options.cull, options.samples),
             baked,
@@ -266,6 +284,65 @@ impl Runtime {
     /// Patches.
     pub fn n(&self) -> usize {
         self.baked.patches.len()
+    }
+
+    /// The probes the frames keep current ([`Runtime::set_probe_demand`]).
+    pub fn probe_demand(&self) -> Option<&[usize]> {
+        self.probe_demand.as_deref()
+    }
+
+    /// Which probes a changed frame updates: `None` every probe (the
+    /// default: the probe view, the GL comparison), `Some(list)` only
+    /// those (the probes around the moving objects, which is all their
+    /// shading reads; `probes::Lookup::needed`). Probes newly demanded are
+    /// updated at once from the last frame's light.
+    pub fn set_probe_demand(&mut self, demand: Option<Vec<usize>>) {
+        let fresh: Vec<usize> = match (&demand, &self.probe_demand) {
+            (None, Some(_)) => (0..self.probe_decoded.len()).collect(),
+            (Some(new), Some(old)) => new.iter().copied().filter(|p| !old.contains(p)).collect(),
+            (Some(_), None) | (None, None) => Vec::new(),
+        };
+        self.probe_demand = demand;
+        if self.frames > 0 && !fresh.is_empty() {
+            self.update_probes(Some(&fresh));
+        }
+    }
+
+    /// Updates the probes `which` (all when `None`) from the last frame's
+    /// `B0`, `H` and sky: what a changed frame does for the demanded ones.
+    pub fn update_probes(&mut self, which: Option<&[usize]>) {
+        if self.probe_decoded.is_empty() {
+            return;
+        }
+        let b = probes::exitance(&self.b0, &self.h, &self.probe_albedo);
+        if self.probe_sh.len() != self.probe_decoded.len() {
+            self.probe_sh = vec![Default::default(); self.probe_decoded.len()];
+        }
+        self.probe_decoded
+            .update(&b, self.sky_cells.as_deref(), which, &mut self.probe_sh);
+    }
+
+    /// The probes' coefficients after the last frame (empty when the bake
+    /// has no probes).
+    pub fn probe_sh(&self) -> &[probes::Sh] {
+        &self.probe_sh
+    }
+
+    /// The sky's mean radiance per cell the probes saw in the last frame
+    /// (`None`: no sky).
+    pub fn sky_cells(&self) -> Option<&[[f32; 3]]> {
+        self.sky_cells.as_deref()
+    }
+
+    /// The probe lookup over the last frame's probes (`None` when the bake
+    /// has none).
+    pub fn probe_lookup(&self) -> Option<probes::Lookup<'_>> {
+        (!self.baked.probes.is_empty()).then(|| probes::Lookup {
+            grid: self.baked.probes.grid,
+            states: &self.baked.probes.states,
+            sh: &self.probe_sh,
+            scene: &self.direct,
+        })
     }
 
     /// `D` on the patches after the last frame (matrix order).
@@ -497,6 +574,12 @@ impl Runtime {
             stats.terms_reused += usize::from(self.sky.is_some());
         } else {
             changed = true;
+            self.sky_cells = self.sky.as_ref().map(|s| {
+                s.cell_radiance()
+                    .into_iter()
+                    .map(|c| c.map(|v| v as f32))
+                    .collect()
+            });
             self.sky_term = match self.sky.clone() {
                 None => None,
                 Some(s) => {
@@ -589,6 +672,13 @@ impl Runtime {
             .near
             .receiver_deviation(&self.b0, &self.h, &self.baked.patches);
         stats.seconds_near_field += t0.elapsed().as_secs_f64();
+        if !self.probe_decoded.is_empty() {
+            let t0 = Instant::now();
+            let demand = self.probe_demand.take();
+            self.update_probes(demand.as_deref());
+            self.probe_demand = demand;
+            stats.seconds_probes = t0.elapsed().as_secs_f64();
+        }
         stats.seconds_total = start.elapsed().as_secs_f64();
         stats
     }

@@ -1,0 +1,307 @@
+//! Bake stage: irradiance probes (issue 46; the layout and the mathematics
+//! are `radiosity_bakefile::probes`'). A regular grid over the scene's
+//! bounds, `spacing` voxels apart and centred on them; from each probe a
+//! spherical Fibonacci set of directions (Keinert et al., "Spherical
+//! Fibonacci Mapping", 2015: equal areas, low discrepancy) is traced
+//! through the scene as the form factors trace theirs
+//! ([`crate::form_factor::rays`]): a ray that meets a patch's surface adds
+//! `(4/N) Y_lm(ω)` to that patch's weights, one that leaves the scene
+//! `(4π/N) Y_lm(ω)` to its sky cell's, one that meets the back of a
+//! surface counts towards the probe being in a solid.
+
+use crate::error::BakeError;
+use crate::form_factor::rays::{with_tracer, Hit, Tracer};
+use crate::voxelize::Voxelization;
+use radiosity_bakefile::probes::{
+    ProbeEntries, ProbeGrid, ProbeState, Probes, OPEN_FRACTION, SOLID_FRACTION,
+};
+use radiosity_core::scene::Scene;
+use radiosity_core::sky::cells::{cell, CELLS};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Default probe spacing, in voxels: two voxels leave a probe between
+/// facing walls of any room the patches resolve, and keep the probes a
+/// fraction of the patches (Sponza at 4k: 588 probes for 3,938 patches).
+pub const DEFAULT_SPACING_VOXELS: f64 = 2.0;
+
+/// Default rays per probe: the band-2 coefficients' Monte Carlo error on a
+/// spherical Fibonacci set is a few 0.1 % of the irradiance
+/// (`tests/probes.rs` measures it against 65,536 rays).
+pub const DEFAULT_RAYS: u32 = 1024;
+
+/// Most probes a bake makes: their entries are up to `rays` each, 40 bytes
+/// an entry, so 65,536 probes at 1,024 rays could ask for 2.7 GB.
+pub const MAX_PROBES: usize = 65_536;
+
+/// Most rays per probe.
+pub const MAX_RAYS: u32 = 65_536;
+
+/// The probe options of a bake.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ProbeOptions {
+    /// The grid's spacing in voxels (0: no probes).
+    pub spacing_voxels: f64,
+    /// Rays per probe.
+    pub rays: u32,
+}
+
+impl Default for ProbeOptions {
+    fn default() -> ProbeOptions {
+        ProbeOptions {
+            spacing_voxels: DEFAULT_SPACING_VOXELS,
+            rays: DEFAULT_RAYS,
+        }
+    }
+}
+
+impl ProbeOptions {
+    /// Whether the bake makes probes.
+    pub fn enabled(&self) -> bool {
+        self.spacing_voxels > 0.0
+    }
+
+    /// Checks the values.
+    pub fn validate(&self) -> Result<(), BakeError> {
+        if !(self.spacing_voxels.is_finite() && self.spacing_voxels >= 0.0) {
+            return Err(BakeError::InvalidOption {
+                option: "probe spacing in voxels",
+                value: self.spacing_voxels.to_string(),
+                expected: "a finite number ≥ 0 (0: no probes)".into(),
+            });
+        }
+        if self.enabled() && !(1..=MAX_RAYS).contains(&self.rays) {
+            return Err(BakeError::InvalidOption {
+                option: "rays per probe",
+                value: self.rays.to_string(),
+                expected: format!("1..={MAX_RAYS}"),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// What the stage made, for the bake report.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ProbeStats {
+    pub probes: u64,
+    pub dims: [u32; 3],
+    pub spacing: f64,
+    pub rays: u32,
+    /// Probes in the empty space, in solids, under the open sky.
+    pub valid: u64,
+    pub solid: u64,
+    pub open: u64,
+    /// Patch and sky entries stored.
+    pub entries: u64,
+    pub sky_entries: u64,
+    /// The section's bytes.
+    pub bytes: u64,
+}
+
+/// Direction `k` of the `n`-point spherical Fibonacci set: `y` in equal
+/// steps, the azimuth advancing by the golden angle.
+pub fn fibonacci_direction(k: usize, n: usize) -> [f64; 3] {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let y = 1.0 - (2.0 * k as f64 + 1.0) / n as f64;
+    let r = (1.0 - y * y).max(0.0).sqrt();
+    let phi = golden * k as f64;
+    [r * phi.cos(), y, r * phi.sin()]
+}
+
+/// Where a probe's ray ends.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RayEnd {
+    /// On patch `j` (matrix order before reordering, as the file's).
+    Patch(u32),
+    /// Out of the scene through sky cell `c`.
+    Sky(u8),
+    /// On the back of a surface.
+    Back,
+    /// On a surface point no patch owns (covered; dark).
+    Dark,
+}
+
+/// The grid over `scene`'s bounds at `spacing`, centred on them; an error
+/// beyond [`MAX_PROBES`].
+pub fn grid(scene: &Scene, spacing: f64) -> Result<ProbeGrid, BakeError> {
+    let (lo, hi) = scene.bounds();
+    let mut dims = [0u32; 3];
+    let mut origin = [0f32; 3];
+    let mut total = 1f64;
+    for a in 0..3 {
+        let extent = f64::from(hi[a] - lo[a]).max(0.0);
+        let d = (extent / spacing).ceil().max(1.0);
+        total *= d;
+        if total > MAX_PROBES as f64 {
+            return Err(BakeError::TooLarge {
+                stage: "probes",
+                detail: format!(
+                    "a spacing of {spacing:.4e} over the scene's extent {:?} makes more than \
+                     {MAX_PROBES} probes; a larger spacing fits",
+                    (0..3).map(|a| hi[a] - lo[a]).collect::<Vec<_>>()
+                ),
+            });
+        }
+        dims[a] = d as u32;
+        let centre = 0.5 * (f64::from(lo[a]) + f64::from(hi[a]));
+        origin[a] = (centre - 0.5 * spacing * (d - 1.0)) as f32;
+    }
+    Ok(ProbeGrid {
+        dims,
+        origin,
+        spacing: spacing as f32,
+    })
+}
+
+/// Where each of `dirs` from each of `points` ends, in `scene` as `vox`
+/// cuts it; `patch_index_of` maps the voxelization's patches to the
+/// matrix's (`None`: removed). What the stage weighs, and the brute force
+/// its tests and benchmark compare with.
+pub fn trace(
+    scene: &Scene,
+    vox: &Voxelization,
+    patch_index_of: &[Option<u32>],
+    points: &[[f64; 3]],
+    dirs: &[[f64; 3]],
+) -> Vec<Vec<RayEnd>> {
+    with_tracer(scene, vox, |tracer, _, _| {
+        trace_with(tracer, patch_index_of, points, dirs)
+    })
+}
+
+fn trace_with(
+    tracer: &Tracer,
+    patch_index_of: &[Option<u32>],
+    points: &[[f64; 3]],
+    dirs: &[[f64; 3]],
+) -> Vec<Vec<RayEnd>> {
+    points
+        .par_iter()
+        .map(|&x| {
+            dirs.iter()
+                .map(|&d| match tracer.trace(x, d, d) {
+                    Hit::Owned { patch, .. } => match patch_index_of[patch as usize] {
+                        Some(j) => RayEnd::Patch(j),
+                        None => RayEnd::Dark,
+                    },
+                    Hit::Escaped => RayEnd::Sky(cell(d) as u8),
+                    Hit::Back => RayEnd::Back,
+                    Hit::Unowned => RayEnd::Dark,
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// One probe's state and entries from where its `ends` (along the
+/// Fibonacci set of their count) ended: per patch and sky cell met, the
+/// amount `a` and the rays' mean direction `m`
+/// (`radiosity_bakefile::probes`, "Stored as amount and mean direction").
+pub fn weigh(ends: &[RayEnd]) -> ProbeEntries {
+    let n = ends.len();
+    // Per target: rays and the sum of their directions.
+    let mut patches: std::collections::BTreeMap<u32, (u32, [f64; 3])> = Default::default();
+    let mut sky = vec![(0u32, [0.0f64; 3]); CELLS];
+    let (mut back, mut out) = (0usize, 0usize);
+    for (k, e) in ends.iter().enumerate() {
+        let d = fibonacci_direction(k, n);
+        let acc = match *e {
+            RayEnd::Patch(j) => patches.entry(j).or_insert((0, [0.0; 3])),
+            RayEnd::Sky(c) => {
+                out += 1;
+                &mut sky[usize::from(c)]
+            }
+            RayEnd::Back => {
+                back += 1;
+                continue;
+            }
+            RayEnd::Dark => continue,
+        };
+        acc.0 += 1;
+        for a in 0..3 {
+            acc.1[a] += d[a];
+        }
+    }
+    if back as f64 > SOLID_FRACTION * n as f64 {
+        return ProbeEntries {
+            state: Some(ProbeState::Solid),
+            ..ProbeEntries::default()
+        };
+    }
+    let entry = |(k, sum): (u32, [f64; 3]), per_ray: f64| -> [f32; 4] {
+        let m = sum.map(|x| x / f64::from(k));
+        // Rounding can leave |m| a hair above 1 for a single ray's
+        // direction: scale it back.
+        let len = radiosity_core::math::norm(m);
+        let m = if len > 1.0 { m.map(|x| x / len) } else { m };
+        [
+            (per_ray * f64::from(k)) as f32,
+            m[0] as f32,
+            m[1] as f32,
+            m[2] as f32,
+        ]
+    };
+    let pi = std::f64::consts::PI;
+    ProbeEntries {
+        state: Some(if out as f64 > OPEN_FRACTION * n as f64 {
+            ProbeState::Open
+        } else {
+            ProbeState::Valid
+        }),
+        patches: patches
+            .into_iter()
+            .map(|(j, acc)| (j, entry(acc, 4.0 / n as f64)))
+            .collect(),
+        sky: sky
+            .into_iter()
+            .enumerate()
+            .filter(|(_, acc)| acc.0 > 0)
+            .map(|(c, acc)| (c as u8, entry(acc, 4.0 * pi / n as f64)))
+            .collect(),
+    }
+}
+
+/// The stage: the grid at `options`' spacing (in `voxel_size`s), each
+/// probe traced and weighed. Probes are traced in chunks so that the ray
+/// ends held at once stay a few MB.
+pub fn build(
+    scene: &Scene,
+    vox: &Voxelization,
+    patch_index_of: &[Option<u32>],
+    options: &ProbeOptions,
+) -> Result<(Probes, ProbeStats), BakeError> {
+    options.validate()?;
+    if !options.enabled() {
+        return Ok((Probes::none(), ProbeStats::default()));
+    }
+    let spacing = options.spacing_voxels * vox.grid.size;
+    let g = grid(scene, spacing)?;
+    let rays = options.rays as usize;
+    let dirs: Vec<[f64; 3]> = (0..rays).map(|k| fibonacci_direction(k, rays)).collect();
+    let points: Vec<[f64; 3]> = (0..g.len()).map(|p| g.position(p)).collect();
+    let chunk = (4 << 20) / rays.max(1);
+    let entries = with_tracer(scene, vox, |tracer, _, _| {
+        let mut entries = Vec::with_capacity(points.len());
+        for part in points.chunks(chunk.max(1)) {
+            let ends = trace_with(tracer, patch_index_of, part, &dirs);
+            entries.extend(ends.par_iter().map(|e| weigh(e)).collect::<Vec<_>>());
+        }
+        entries
+    });
+    let probes = Probes::from_entries(options.rays, g, &entries);
+    let count = |s: ProbeState| probes.states.iter().filter(|&&x| x == s).count() as u64;
+    let stats = ProbeStats {
+        probes: g.len() as u64,
+        dims: g.dims,
+        spacing,
+        rays: options.rays,
+        valid: count(ProbeState::Valid),
+        solid: count(ProbeState::Solid),
+        open: count(ProbeState::Open),
+        entries: probes.patches.len() as u64,
+        sky_entries: probes.sky_cells.len() as u64,
+        bytes: probes.to_bytes().len() as u64,
+    };
+    Ok((probes, stats))
+}
