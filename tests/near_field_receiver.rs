@@ -177,6 +177,7 @@ fn gl_spreads_h_over_the_receivers_as_the_cpu_does() {
         description: String::new(),
         emission: BTreeMap::new(),
         sky: None,
+        objects: Vec::new(),
     };
     let albedo = Albedo::new(&rt.scene);
     let (w, h) = (96, 72);

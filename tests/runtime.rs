@@ -489,6 +489,7 @@ fn floor_profile_falls_smoothly(rt: &mut Runtime, ripple: f64) {
     // Looking straight down at the floor.
     let config = scene_config::SceneConfig {
         sky: None,
+        objects: Vec::new(),
         emission: BTreeMap::new(),
         camera: scene_config::Camera {
             position: [2.0, 6.0, 2.0],

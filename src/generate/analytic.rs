@@ -93,6 +93,7 @@ pub(super) fn parallel_squares() -> Result<GeneratedScene, usize> {
     b.plane_rect(1, 1.0, -1.0, (0.0, 1.0), (0.0, 1.0));
     let config = SceneConfig {
         sky: None,
+        objects: Vec::new(),
         emission: Default::default(),
         camera: Camera {
             position: [0.5, 0.5, 3.0],
@@ -127,6 +128,7 @@ pub(super) fn perpendicular_squares() -> Result<GeneratedScene, usize> {
     b.plane_rect(2, 0.0, 1.0, (0.0, 1.0), (0.0, 1.0));
     let config = SceneConfig {
         sky: None,
+        objects: Vec::new(),
         emission: Default::default(),
         camera: Camera {
             position: [0.5, 1.6, 2.6],
@@ -171,6 +173,7 @@ pub(super) fn coaxial_disks() -> Result<GeneratedScene, usize> {
     b.disk(DVec3::Y, DVec3::X, DVec3::Z, 1.0, DISK_SEGMENTS, -DVec3::Y);
     let config = SceneConfig {
         sky: None,
+        objects: Vec::new(),
         emission: Default::default(),
         camera: Camera {
             position: [0.0, 0.5, 4.0],
@@ -211,6 +214,7 @@ pub(super) fn closed_cube() -> Result<GeneratedScene, usize> {
     }
     let config = SceneConfig {
         sky: None,
+        objects: Vec::new(),
         emission: Default::default(),
         camera: Camera {
             position: [0.5, 0.5, 0.95],

@@ -159,6 +159,7 @@ pub(super) fn build_with(name: &str, max_cell: f64) -> Result<GeneratedScene, us
     let intensity = LIGHT_KE.map(|e| (e as f64 * area / std::f64::consts::PI) as f32);
     let config = SceneConfig {
         sky: None,
+        objects: Vec::new(),
         emission: Default::default(),
         camera: Camera {
             position: [278.0, 273.0, -800.0],

@@ -72,6 +72,7 @@ fn camera(position: [f32; 3], target: [f32; 3], fov: f32) -> Camera {
 fn config(camera: Camera, description: &str) -> SceneConfig {
     SceneConfig {
         sky: None,
+        objects: Vec::new(),
         emission: Default::default(),
         camera,
         lights: Vec::new(),

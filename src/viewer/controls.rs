@@ -351,6 +351,7 @@ mod tests {
     fn light_edits_move_scale_recolour_add_and_remove() {
         let config = SceneConfig {
             sky: None,
+            objects: Vec::new(),
             camera: camera(),
             lights: vec![Light::Spot {
                 position: [0.0, 3.0, 0.0],
@@ -425,6 +426,7 @@ mod tests {
     fn held_keys_and_wheels_stop_at_finite_bounds() {
         let config = SceneConfig {
             sky: None,
+            objects: Vec::new(),
             camera: camera(),
             lights: vec![Light::Point {
                 position: [0.0, 3.0, 0.0],

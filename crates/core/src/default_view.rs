@@ -137,6 +137,7 @@ pub fn config_for(scene: &Scene) -> SceneConfig {
             .unwrap_or_default();
         return SceneConfig {
             sky: None,
+            objects: Vec::new(),
             camera: a.camera.clone().expect("checked"),
             lights: a.lights.clone(),
             units: "metres".to_string(),
@@ -278,6 +279,7 @@ pub fn default_config(scene: &Scene) -> (SceneConfig, Placement) {
         };
         let config = SceneConfig {
             sky: None,
+            objects: Vec::new(),
             camera,
             lights: vec![light],
             units,
@@ -323,6 +325,7 @@ pub fn default_config(scene: &Scene) -> (SceneConfig, Placement) {
     let h = normalize([-v[0], 0.0, -v[2]]);
     let config = SceneConfig {
         sky: None,
+        objects: Vec::new(),
         camera,
         lights: vec![sun(h)],
         units,

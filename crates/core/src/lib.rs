@@ -14,6 +14,7 @@ pub mod error;
 pub mod light;
 pub mod math;
 pub mod npy;
+pub mod objects;
 pub mod patch;
 pub mod permutation;
 pub mod pfm;

@@ -40,6 +40,10 @@ pub struct SceneConfig {
     /// The sky ([`crate::sky`]); none: black, as before skies existed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sky: Option<crate::sky::Sky>,
+    /// Moving objects ([`crate::objects`]): meshes placed in the scene,
+    /// lit by the probes; none when absent.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub objects: Vec<crate::objects::Placement>,
 }
 
 /// The farthest a camera may be from the scene's centre, in scene
@@ -257,6 +261,17 @@ impl SceneConfig {
         }
         if let Some(sky) = &self.sky {
             sky.validate()?;
+        }
+        for (i, o) in self.objects.iter().enumerate() {
+            let f = |name: &str| format!("objects[{i}].{name}");
+            if o.mesh.trim().is_empty() {
+                return Err(invalid(f("mesh"), format!("{:?}", o.mesh), "a mesh file must be named"));
+            }
+            finite3(f("position"), o.position)?;
+            finite3(f("rotation_deg"), o.rotation_deg)?;
+            if !(o.scale.is_finite() && o.scale > 0.0) {
+                return Err(invalid(f("scale"), o.scale.to_string(), "must be a finite number > 0"));
+            }
         }
         for (i, light) in self.lights.iter().enumerate() {
             let f = |name: &str| format!("lights[{i}].{name}");

@@ -29,9 +29,9 @@ pub const LIGHT_BINDING: usize = 14;
 pub const VIEW_BINDING: usize = 15;
 /// Storage bindings of shadow_ray.glsl: the BVH's nodes and triangles, and
 /// the rays' lift and ends.
-const BVH_NODE_BINDING: usize = 8;
-const BVH_TRI_BINDING: usize = 9;
-const RAY_BINDING: usize = 10;
+pub const BVH_NODE_BINDING: usize = 8;
+pub const BVH_TRI_BINDING: usize = 9;
+pub const RAY_BINDING: usize = 10;
 /// Storage binding of the sky's irradiance at the lit points, added to
 /// `D` there for the near-field correction (direct.comp).
 const SKY_POINTS_BINDING: usize = 11;
@@ -234,6 +234,12 @@ impl GlDirect {
     pub fn d_points_buffer(&self) -> glow::Buffer {
         self.buffers[7]
     }
+    /// The scene's BVH nodes and triangles and the shadow-ray records
+    /// (shadow_ray.glsl's buffers), for other passes that trace.
+    pub fn bvh_buffers(&self) -> [glow::Buffer; 3] {
+        [self.buffers[8], self.buffers[9], self.buffers[10]]
+    }
+
     /// The per-patch albedo buffer (3 n, channel-major).
     pub fn albedo_buffer(&self) -> glow::Buffer {
         self.buffers[2]

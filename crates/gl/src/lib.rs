@@ -20,6 +20,8 @@ pub mod direct;
 pub mod gather;
 pub mod light;
 pub mod near_field;
+pub mod objects;
+pub mod probes;
 pub mod renderer;
 pub mod scene;
 pub mod shade;

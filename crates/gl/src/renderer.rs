@@ -224,6 +224,12 @@ pub struct GlRenderer {
     near: Option<GlNearField>,
     shade: Shade,
     sky: GlSky,
+    /// The irradiance probes (none when the bake has none) and the moving
+    /// objects lit by them; whether the objects moved since the shadow
+    /// maps were drawn.
+    probes: Option<super::probes::GlProbes>,
+    objects: super::objects::GlObjects,
+    objects_moved: bool,
     /// The sky changed since the emission buffer (which carries the sky's
     /// `ρ ∘ D_sky` into `B0`) was last uploaded.
     sky_changed: bool,
@@ -276,6 +282,17 @@ impl GlRenderer {
         )?;
         let materials = rt.scene.materials.clone();
         let sky = GlSky::new(gl, n)?;
+        let probes = if baked.probes.is_empty() {
+            None
+        } else {
+            Some(super::probes::GlProbes::new(
+                gl,
+                &radiosity_runtime::probes::Decoded::new(&baked.probes),
+                baked.probes.grid,
+                n,
+            )?)
+        };
+        let objects = super::objects::GlObjects::new(gl)?;
         Ok(GlRenderer {
             scene,
             map,
@@ -285,6 +302,9 @@ impl GlRenderer {
             near,
             shade,
             sky,
+            probes,
+            objects,
+            objects_moved: false,
             sky_changed: false,
             h_points: false,
             lights_buffer: storage_buffer(gl, &[], glow::DYNAMIC_DRAW)?,
@@ -391,6 +411,17 @@ impl GlRenderer {
             }
         }
         self.h_points = self.near.as_ref().is_some_and(|nf| nf.has_receiver());
+        if let Some(p) = &self.probes {
+            // SAFETY: a barrier between the gather's writes and the probes'
+            // reads.
+            unsafe { gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT) };
+            p.dispatch(
+                gl,
+                self.direct.b0_buffer(),
+                self.gather.h_buffer(),
+                self.direct.albedo_buffer(),
+            );
+        }
         self.timers.end(gl);
         // SAFETY: the gather's writes are read by the shading pass.
         unsafe { gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT) };
@@ -421,7 +452,13 @@ impl GlRenderer {
                 .is_some_and(|(l, s, c)| l == lights && s == scales && *c == cpu);
         if !stats.unchanged {
             stats.views = self.shadow_maps(gl, lights)?;
+        } else if self.objects_moved {
+            // The same light, moved objects: their shadows drawn again.
+            let objects = (!self.objects.is_empty()).then_some(&self.objects);
+            self.shadows
+                .render(gl, &self.scene, &self.packed.views, objects)?;
         }
+        self.objects_moved = false;
         Ok(stats)
     }
 
@@ -449,7 +486,9 @@ impl GlRenderer {
             glow::DYNAMIC_DRAW,
         );
         self.timers.begin(gl, Pass::Shadow);
-        self.shadows.render(gl, &self.scene, &self.packed.views)?;
+        let objects = (!self.objects.is_empty()).then_some(&self.objects);
+        self.shadows
+            .render(gl, &self.scene, &self.packed.views, objects)?;
         self.timers.end(gl);
         Ok(self.packed.views.len())
     }
@@ -531,6 +570,15 @@ impl GlRenderer {
             return Ok(());
         }
         self.sky.set(gl, rt, sky)?;
+        if let Some(p) = &mut self.probes {
+            let cells: Option<Vec<[f32; 3]>> = sky.map(|s| {
+                s.cell_radiance()
+                    .into_iter()
+                    .map(|c| c.map(|v| v as f32))
+                    .collect()
+            });
+            p.set_sky(gl, cells.as_deref());
+        }
         self.sky_changed = true;
         self.last = None;
         Ok(())
@@ -597,7 +645,40 @@ impl GlRenderer {
             },
         );
         self.timers.end(gl);
-        r
+        r?;
+        if !self.objects.is_empty() {
+            let (w, h) = self.shade.size();
+            let vp = super::shade::camera_matrix(camera, w, h, self.scene.lo, self.scene.hi);
+            let bvh = self.direct.bvh_buffers();
+            let (objects, probes, shade) = (&self.objects, self.probes.as_ref(), &self.shade);
+            shade.draw_more(gl, || {
+                objects.draw(gl, &vp, view, bvh, probes, |p| binding.bind(gl, p));
+            });
+            super::check(gl, "drawing the moving objects")?;
+        }
+        Ok(())
+    }
+
+    /// The moving objects' placed triangles ([`radiosity_core::objects`]);
+    /// the next frame draws their shadows even when the light is the same.
+    pub fn set_objects(&mut self, gl: &glow::Context, vertices: &[radiosity_core::objects::Vertex]) {
+        self.objects.set(gl, vertices);
+        self.objects_moved = true;
+    }
+
+    /// The probes' coefficients from the CPU run time
+    /// ([`Runtime::probe_sh`]), for frames whose `H` came from it
+    /// ([`GlRenderer::frame_with_h`]).
+    pub fn set_probe_sh(&self, gl: &glow::Context, sh: &[radiosity_runtime::probes::Sh]) {
+        if let Some(p) = &self.probes {
+            p.upload(gl, sh);
+        }
+    }
+
+    /// The probes' coefficients of the last frame read back (none without
+    /// probes).
+    pub fn probe_sh(&self, gl: &glow::Context) -> Option<Vec<radiosity_runtime::probes::Sh>> {
+        self.probes.as_ref().map(|p| p.read(gl))
     }
 
     /// [`GlRenderer::draw`], then the image read back (blocking).
@@ -688,6 +769,10 @@ impl GlRenderer {
         }
         self.shade.delete(gl);
         self.sky.delete(gl);
+        if let Some(p) = self.probes {
+            p.delete(gl);
+        }
+        self.objects.delete(gl);
         // SAFETY: objects of this context, not used after.
         unsafe {
             gl.delete_buffer(self.lights_buffer);

@@ -328,6 +328,22 @@ impl Shade {
         super::check(gl, "shading")
     }
 
+    /// Runs `f` with the render target bound (as [`Shade::draw`] left it),
+    /// depth-tested and written: more geometry drawn into the image.
+    pub fn draw_more(&self, gl: &glow::Context, f: impl FnOnce()) {
+        let (w, h) = self.size;
+        // SAFETY: state and binds on the current context, restored after.
+        unsafe {
+            gl.bind_framebuffer(glow::FRAMEBUFFER, Some(self.framebuffer));
+            gl.viewport(0, 0, w as i32, h as i32);
+            gl.enable(glow::DEPTH_TEST);
+            gl.depth_func(glow::LESS);
+            gl.depth_mask(true);
+            f();
+            gl.bind_framebuffer(glow::FRAMEBUFFER, None);
+        }
+    }
+
     /// The render target read back (blocking): linear radiance, top row
     /// first, and the covered flags.
     pub fn read(&self, gl: &glow::Context) -> Image {

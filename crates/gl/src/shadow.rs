@@ -175,6 +175,7 @@ impl ShadowMaps {
         gl: &glow::Context,
         scene: &GlScene,
         views: &[ShadowView],
+        objects: Option<&super::objects::GlObjects>,
     ) -> Result<(), GlError> {
         if views.len() > self.layers {
             self.allocate(gl, views.len())?;
@@ -211,6 +212,9 @@ impl ShadowMaps {
                     &v.view_projection.to_cols_array(),
                 );
                 scene.draw_depth(gl);
+                if let Some(o) = objects {
+                    o.draw_depth(gl);
+                }
             }
             gl.disable(glow::POLYGON_OFFSET_FILL);
             gl.bind_framebuffer(glow::FRAMEBUFFER, None);

@@ -701,6 +701,7 @@ pub(super) fn build() -> Result<GeneratedScene, usize> {
 
     let config = SceneConfig {
         sky: None,
+        objects: Vec::new(),
         emission: Default::default(),
         camera: Camera {
             position: [9.0, 1.7, 7.3],

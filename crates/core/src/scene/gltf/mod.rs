@@ -302,6 +302,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     // scaled to zero leaves a light without a direction).
     let check = crate::scene_config::SceneConfig {
         sky: None,
+        objects: Vec::new(),
         camera: authored.camera.clone().unwrap_or(Camera {
             position: [0.0, 0.0, 1.0],
             target: [0.0; 3],

@@ -1,0 +1,143 @@
+//! Moving objects (issue 46): meshes placed in the camera-and-lights file's
+//! `"objects"` list (`{"mesh": "path.obj", "position": [x, y, z],
+//! "scale": s, "rotation_deg": [x, y, z]}`, the path relative to the JSON
+//! file), loaded once and placed in world space for each pose. They are
+//! lit by the probes and the lights and cast shadows in the shadow maps;
+//! they do not change the patches' light (the static scene's indirect
+//! light ignores them, as Enlighten's dynamic objects do).
+
+use crate::math::{cross, normalize, sub};
+use crate::error::SceneError;
+use crate::scene::Scene;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// One object as the JSON places it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Placement {
+    /// The mesh file (OBJ or glTF), relative to the JSON file.
+    pub mesh: String,
+    /// Where the mesh's origin goes.
+    pub position: [f32; 3],
+    /// Uniform scale (> 0); 1 when absent.
+    #[serde(default = "one")]
+    pub scale: f32,
+    /// Rotations about x, then y, then z, in degrees; none when absent.
+    #[serde(default)]
+    pub rotation_deg: [f32; 3],
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+impl Placement {
+    /// The point `p` of the mesh in world space: scaled, rotated about x,
+    /// y then z, moved.
+    pub fn apply(&self, p: [f32; 3]) -> [f32; 3] {
+        let r = self.rotate(p.map(|v| v * self.scale));
+        std::array::from_fn(|a| r[a] + self.position[a])
+    }
+
+    /// The direction `d` turned as the mesh is (no scale, no move).
+    pub fn rotate(&self, d: [f32; 3]) -> [f32; 3] {
+        let [ax, ay, az] = self.rotation_deg.map(|a| a.to_radians());
+        let (s, c) = ax.sin_cos();
+        let d = [d[0], c * d[1] - s * d[2], s * d[1] + c * d[2]];
+        let (s, c) = ay.sin_cos();
+        let d = [c * d[0] + s * d[2], d[1], -s * d[0] + c * d[2]];
+        let (s, c) = az.sin_cos();
+        [c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]]
+    }
+}
+
+/// A loaded mesh: its triangles' corners, smooth normals (the file's, or
+/// the mean of the faces' around each vertex) and each triangle's albedo.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Vec<[f32; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+    pub albedo: Vec<[f32; 3]>,
+}
+
+/// One vertex drawn: world position, unit normal, albedo.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+pub struct Vertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+    pub albedo: [f32; 3],
+}
+
+impl Mesh {
+    /// The mesh of the scene file `path` ([`crate::scene::load`]: its
+    /// repairs and errors, which name the file).
+    pub fn load(path: &Path) -> Result<Mesh, SceneError> {
+        Ok(Mesh::of_scene(&crate::scene::load(path)?))
+    }
+
+    /// The mesh of a loaded scene.
+    pub fn of_scene(s: &Scene) -> Mesh {
+        let normals = if s.normals.len() == s.positions.len() {
+            s.normals.clone()
+        } else {
+            let mut acc = vec![[0.0f64; 3]; s.positions.len()];
+            for t in &s.triangles {
+                let p = t.map(|v| s.positions[v as usize].map(f64::from));
+                // Area-weighted: the cross product's length.
+                let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+                for &v in t {
+                    for a in 0..3 {
+                        acc[v as usize][a] += n[a];
+                    }
+                }
+            }
+            acc.into_iter()
+                .map(|n| normalize(n).map(|v| v as f32))
+                .collect()
+        };
+        Mesh {
+            positions: s.positions.clone(),
+            normals,
+            triangles: s.triangles.clone(),
+            albedo: s
+                .triangle_material
+                .iter()
+                .map(|&m| s.materials[m as usize].albedo)
+                .collect(),
+        }
+    }
+
+    /// Its triangles' corners placed in world space (three vertices a
+    /// triangle).
+    pub fn placed(&self, at: &Placement) -> Vec<Vertex> {
+        let mut out = Vec::with_capacity(3 * self.triangles.len());
+        for (t, a) in self.triangles.iter().zip(&self.albedo) {
+            for &v in t {
+                let n = at.rotate(self.normals[v as usize]);
+                out.push(Vertex {
+                    position: at.apply(self.positions[v as usize]),
+                    normal: normalize(n.map(f64::from)).map(|x| x as f32),
+                    albedo: *a,
+                });
+            }
+        }
+        out
+    }
+
+    /// The bounds of its placed corners.
+    pub fn bounds(&self, at: &Placement) -> ([f64; 3], [f64; 3]) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in &self.positions {
+            let q = at.apply(*p);
+            for a in 0..3 {
+                lo[a] = lo[a].min(f64::from(q[a]));
+                hi[a] = hi[a].max(f64::from(q[a]));
+            }
+        }
+        (lo, hi)
+    }
+}

@@ -1,0 +1,19 @@
+// Moving objects from the camera (host: crates/gl/src/objects.rs): world
+// positions (the host places the meshes), normals and albedo per vertex.
+
+layout(location = 0) in vec3 position;
+layout(location = 1) in vec3 normal;
+layout(location = 2) in vec3 albedo;
+
+uniform mat4 view_projection;
+
+out vec3 v_position;
+out vec3 v_normal;
+out vec3 v_albedo;
+
+void main() {
+    v_position = position;
+    v_normal = normal;
+    v_albedo = albedo;
+    gl_Position = view_projection * vec4(position, 1.0);
+}
