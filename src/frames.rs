@@ -328,6 +328,11 @@ pub(crate) fn draw_headless(
             // The run time's sky (none where the bake has no sky
             // visibility: said above).
             let _ = r.set_sky(gl, rt, rt.sky());
+            if !config.objects.is_empty() {
+                let verts = radiosity::core::objects::place_all(&config.objects)
+                    .context("loading the camera-and-lights file's objects")?;
+                r.set_objects(gl, &verts);
+            }
             let start = std::time::Instant::now();
             let fs = r.frame(gl, &config.frame_lights(), &config.emission)?;
             let img = r.render(gl, &config.camera, view, (width, height), &config.emission)?;
@@ -356,6 +361,13 @@ pub(crate) fn draw_headless(
             (img, s)
         }
         None => {
+            if !config.objects.is_empty() {
+                eprintln!(
+                    "warning: the {} moving object(s) of the camera-and-lights file are drawn by \
+                     the GL back end only (--backend gl); the CPU image leaves them out",
+                    config.objects.len()
+                );
+            }
             let albedo = Albedo::new(&rt.scene);
             let fs = rt.frame(&config.frame_lights(), &config.emission);
             let (img, rs) = render(rt, config, view, width, height, &albedo);

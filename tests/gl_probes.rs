@@ -87,7 +87,8 @@ fn gl_probes_and_objects_match_the_cpu() {
     let ctx = context();
     let gl = &ctx.gl;
     let mut r = GlRenderer::new(gl, &rt, GlOptions::default()).expect("GL renderer");
-    r.frame(gl, &config.frame_lights(), &config.emission).unwrap();
+    r.frame(gl, &config.frame_lights(), &config.emission)
+        .unwrap();
 
     // The update: GL's coefficients against the CPU's. Both sum the same
     // f32 products per probe in the same order; the GL compiler may fuse
@@ -132,16 +133,21 @@ fn gl_probes_and_objects_match_the_cpu() {
         position: [x as f32, 273.0, 280.0],
         scale: 80.0,
         rotation_deg: [0.0; 3],
+        resolved: None,
     };
     r.set_objects(gl, &[]);
-    let bare = r.render(gl, &config.camera, View::Indirect, size, &config.emission).unwrap();
+    let bare = r
+        .render(gl, &config.camera, View::Indirect, size, &config.emission)
+        .unwrap();
     let toward = |wall: f64| wall - 120.0 * (wall - 0.5 * (red + green)).signum();
     let mut seen = Vec::new();
     for wall in [red, green] {
         let at = place(toward(wall));
         let verts: Vec<Vertex> = mesh.placed(&at);
         r.set_objects(gl, &verts);
-        let img = r.render(gl, &config.camera, View::Indirect, size, &config.emission).unwrap();
+        let img = r
+            .render(gl, &config.camera, View::Indirect, size, &config.emission)
+            .unwrap();
         let (mean, k) = object_pixels(&img, &bare);
         assert!(k > 200, "the sphere covers {k} pixels");
         // The CPU's lookup over the sphere's points facing the camera.
@@ -161,7 +167,12 @@ fn gl_probes_and_objects_match_the_cpu() {
         // vertices), so they agree to the lighting's variation over the
         // sphere, not to rounding: within 25 %.
         for c in 0..3 {
-            assert!((mean[c] - cpu[c]).abs() < 0.25 * cpu[c], "channel {c}: GL {} CPU {}", mean[c], cpu[c]);
+            assert!(
+                (mean[c] - cpu[c]).abs() < 0.25 * cpu[c],
+                "channel {c}: GL {} CPU {}",
+                mean[c],
+                cpu[c]
+            );
         }
         seen.push(mean);
     }
@@ -176,15 +187,21 @@ fn gl_probes_and_objects_match_the_cpu() {
     // The sphere casts a shadow: resting above the floor under the spot,
     // the direct view's pixels it does not cover lose light.
     r.set_objects(gl, &[]);
-    r.frame(gl, &config.frame_lights(), &config.emission).unwrap();
-    let no_sphere = r.render(gl, &config.camera, View::Direct, size, &config.emission).unwrap();
+    r.frame(gl, &config.frame_lights(), &config.emission)
+        .unwrap();
+    let no_sphere = r
+        .render(gl, &config.camera, View::Direct, size, &config.emission)
+        .unwrap();
     let at = Placement {
         position: [278.0, 200.0, 280.0],
         ..place(0.0)
     };
     r.set_objects(gl, &mesh.placed(&at));
-    r.frame(gl, &config.frame_lights(), &config.emission).unwrap();
-    let with = r.render(gl, &config.camera, View::Direct, size, &config.emission).unwrap();
+    r.frame(gl, &config.frame_lights(), &config.emission)
+        .unwrap();
+    let with = r
+        .render(gl, &config.camera, View::Direct, size, &config.emission)
+        .unwrap();
     let (mut shadowed, mut brighter) = (0, 0);
     let (mut lost, mut total) = (0.0, 0.0);
     let (_, covered) = object_pixels(&with, &no_sphere);
@@ -199,6 +216,9 @@ fn gl_probes_and_objects_match_the_cpu() {
         }
     }
     eprintln!("the sphere's shadow: {shadowed} pixels under half their light ({covered} changed in all, {brighter} brighter), {:.1} % of the image's direct light", 100.0 * lost / total);
-    assert!(shadowed > covered / 4, "{shadowed} shadowed of {covered} changed");
+    assert!(
+        shadowed > covered / 4,
+        "{shadowed} shadowed of {covered} changed"
+    );
     r.delete(gl);
 }

@@ -9,10 +9,10 @@
 
 mod common;
 
-use radiosity::bake::probes::{fibonacci_direction, trace, weigh, ProbeOptions, RayEnd};
-use radiosity::bake::voxelize::Resolution;
 use radiosity::bake::compute::Backend;
+use radiosity::bake::probes::{fibonacci_direction, trace, weigh, ProbeOptions, RayEnd};
 use radiosity::bake::transfer_stages;
+use radiosity::bake::voxelize::Resolution;
 use radiosity::bakefile::baked::Baked;
 use radiosity::bakefile::probes::{ProbeState, Probes};
 use radiosity::core::scene;
@@ -112,7 +112,13 @@ fn band_two_from_the_entries_matches_brute_force() {
         .filter(|&p| probes.states[p] == ProbeState::Valid)
         .collect();
     let used_points: Vec<[f64; 3]> = used.iter().map(|&p| points[p]).collect();
-    let brute_ends = trace(&st.scene, &st.vox, &patch_index_of, &used_points, &brute_dirs);
+    let brute_ends = trace(
+        &st.scene,
+        &st.vox,
+        &patch_index_of,
+        &used_points,
+        &brute_dirs,
+    );
     let (mut got, mut want) = (Vec::new(), Vec::new());
     for (k, &p) in used.iter().enumerate() {
         let sh = decoded.probe(p, &b, None);
@@ -224,7 +230,10 @@ fn probes_in_solids_are_detected() {
             assert!(p.patch_entries(k).count() > 0);
         }
     }
-    assert!(inside_block >= 4 && free > 20, "{inside_block} in the block, {free} free");
+    assert!(
+        inside_block >= 4 && free > 20,
+        "{inside_block} in the block, {free} free"
+    );
 }
 
 /// Two 2 × 1 × 1 rooms sharing a 1 cm wall, a point light in the left one:
@@ -237,7 +246,11 @@ fn probes_in_solids_are_detected() {
 #[test]
 fn no_light_leaks_through_a_thin_wall() {
     let mut quads = common::box_inside([0.0; 3], [2.0, 1.0, 1.0], [0.7; 3]);
-    quads.extend(common::box_inside([2.01, 0.0, 0.0], [4.01, 1.0, 1.0], [0.7; 3]));
+    quads.extend(common::box_inside(
+        [2.01, 0.0, 0.0],
+        [4.01, 1.0, 1.0],
+        [0.7; 3],
+    ));
     let obj = common::write_quads("probes-two-rooms", &quads);
     let c = common::bake_config(&obj, Resolution::VoxelSize(0.25));
     let (baked, _) = common::bake_to(c, &obj.with_file_name("scene.rad"));

@@ -6,8 +6,8 @@
 //! they do not change the patches' light (the static scene's indirect
 //! light ignores them, as Enlighten's dynamic objects do).
 
-use crate::math::{cross, normalize, sub};
 use crate::error::SceneError;
+use crate::math::{cross, normalize, sub};
 use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -26,6 +26,10 @@ pub struct Placement {
     /// Rotations about x, then y, then z, in degrees; none when absent.
     #[serde(default)]
     pub rotation_deg: [f32; 3],
+    /// `mesh` resolved against the JSON file's directory when the file was
+    /// read (`scene_config::load`); not written back.
+    #[serde(skip)]
+    pub resolved: Option<std::path::PathBuf>,
 }
 
 fn one() -> f32 {
@@ -33,6 +37,14 @@ fn one() -> f32 {
 }
 
 impl Placement {
+    /// The mesh file: resolved against the JSON file's directory, or as
+    /// written.
+    pub fn mesh_path(&self) -> std::path::PathBuf {
+        self.resolved
+            .clone()
+            .unwrap_or_else(|| std::path::PathBuf::from(&self.mesh))
+    }
+
     /// The point `p` of the mesh in world space: scaled, rotated about x,
     /// y then z, moved.
     pub fn apply(&self, p: [f32; 3]) -> [f32; 3] {
@@ -50,6 +62,16 @@ impl Placement {
         let (s, c) = az.sin_cos();
         [c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]]
     }
+}
+
+/// Every object of `placements` loaded and placed (three vertices a
+/// triangle); an error names the mesh file.
+pub fn place_all(placements: &[Placement]) -> Result<Vec<Vertex>, SceneError> {
+    let mut out = Vec::new();
+    for p in placements {
+        out.extend(Mesh::load(&p.mesh_path())?.placed(p));
+    }
+    Ok(out)
 }
 
 /// A loaded mesh: its triangles' corners, smooth normals (the file's, or

@@ -265,12 +265,20 @@ impl SceneConfig {
         for (i, o) in self.objects.iter().enumerate() {
             let f = |name: &str| format!("objects[{i}].{name}");
             if o.mesh.trim().is_empty() {
-                return Err(invalid(f("mesh"), format!("{:?}", o.mesh), "a mesh file must be named"));
+                return Err(invalid(
+                    f("mesh"),
+                    format!("{:?}", o.mesh),
+                    "a mesh file must be named",
+                ));
             }
             finite3(f("position"), o.position)?;
             finite3(f("rotation_deg"), o.rotation_deg)?;
             if !(o.scale.is_finite() && o.scale > 0.0) {
-                return Err(invalid(f("scale"), o.scale.to_string(), "must be a finite number > 0"));
+                return Err(invalid(
+                    f("scale"),
+                    o.scale.to_string(),
+                    "must be a finite number > 0",
+                ));
             }
         }
         for (i, light) in self.lights.iter().enumerate() {
@@ -360,6 +368,11 @@ impl SceneConfig {
             invalid,
         })?;
         let mut config = config;
+        // Object meshes are found beside the JSON file.
+        let base = path.parent().unwrap_or(Path::new(""));
+        for o in &mut config.objects {
+            o.resolved = Some(base.join(&o.mesh));
+        }
         if let Some(sky) = &mut config.sky {
             let base = path.parent().unwrap_or(Path::new(""));
             sky.load_map(base).map_err(|source| ConfigError::EnvMap {

@@ -124,7 +124,10 @@ impl GlObjects {
         unsafe {
             gl.use_program(Some(self.program));
             let b = glow::SHADER_STORAGE_BUFFER;
-            for (k, buf) in [BVH_NODE_BINDING, BVH_TRI_BINDING, RAY_BINDING].iter().zip(bvh) {
+            for (k, buf) in [BVH_NODE_BINDING, BVH_TRI_BINDING, RAY_BINDING]
+                .iter()
+                .zip(bvh)
+            {
                 gl.bind_buffer_base(b, *k as u32, Some(buf));
             }
             set_lights(self.program);
@@ -132,7 +135,11 @@ impl GlObjects {
                 p.bind_lookup(gl, self.program);
             }
             let loc = |s: &str| gl.get_uniform_location(self.program, s);
-            gl.uniform_matrix_4_f32_slice(loc("view_projection").as_ref(), false, &vp.to_cols_array());
+            gl.uniform_matrix_4_f32_slice(
+                loc("view_projection").as_ref(),
+                false,
+                &vp.to_cols_array(),
+            );
             gl.uniform_1_i32(loc("has_probes").as_ref(), probes.is_some() as i32);
             gl.uniform_1_i32(
                 loc("view_mode").as_ref(),

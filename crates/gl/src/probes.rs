@@ -47,13 +47,31 @@ impl GlProbes {
         let states: Vec<u32> = probes.states.iter().map(|&s| s as u32).collect();
         let count = probes.len();
         // Zero-length buffers are given a word: GL refuses empty storage.
-        let nonempty = |b: &[u8]| if b.is_empty() { vec![0u8; 4] } else { b.to_vec() };
+        let nonempty = |b: &[u8]| {
+            if b.is_empty() {
+                vec![0u8; 4]
+            } else {
+                b.to_vec()
+            }
+        };
         let buffers = [
             storage_buffer(gl, &nonempty(bytes_of(&probes.starts)), glow::STATIC_DRAW)?,
             storage_buffer(gl, &nonempty(bytes_of(&probes.patches)), glow::STATIC_DRAW)?,
-            storage_buffer(gl, &nonempty(bytes_of(&flat(&probes.weights))), glow::STATIC_DRAW)?,
-            storage_buffer(gl, &nonempty(bytes_of(&probes.sky_starts)), glow::STATIC_DRAW)?,
-            storage_buffer(gl, &nonempty(bytes_of(&probes.sky_cells)), glow::STATIC_DRAW)?,
+            storage_buffer(
+                gl,
+                &nonempty(bytes_of(&flat(&probes.weights))),
+                glow::STATIC_DRAW,
+            )?,
+            storage_buffer(
+                gl,
+                &nonempty(bytes_of(&probes.sky_starts)),
+                glow::STATIC_DRAW,
+            )?,
+            storage_buffer(
+                gl,
+                &nonempty(bytes_of(&probes.sky_cells)),
+                glow::STATIC_DRAW,
+            )?,
             storage_buffer(
                 gl,
                 &nonempty(bytes_of(&flat(&probes.sky_weights))),
@@ -86,7 +104,13 @@ impl GlProbes {
 
     /// Dispatches the update from the buffers `b0`, `h` and `albedo` (3 n
     /// floats each, channel-major).
-    pub fn dispatch(&self, gl: &glow::Context, b0: glow::Buffer, h: glow::Buffer, albedo: glow::Buffer) {
+    pub fn dispatch(
+        &self,
+        gl: &glow::Context,
+        b0: glow::Buffer,
+        h: glow::Buffer,
+        albedo: glow::Buffer,
+    ) {
         // SAFETY: binds, uniforms and a dispatch on the current context.
         unsafe {
             gl.use_program(Some(self.program));
@@ -136,7 +160,12 @@ impl GlProbes {
             let loc = |s: &str| gl.get_uniform_location(program, s);
             let g = &self.grid;
             gl.uniform_3_u32(loc("probe_dims").as_ref(), g.dims[0], g.dims[1], g.dims[2]);
-            gl.uniform_3_f32(loc("probe_origin").as_ref(), g.origin[0], g.origin[1], g.origin[2]);
+            gl.uniform_3_f32(
+                loc("probe_origin").as_ref(),
+                g.origin[0],
+                g.origin[1],
+                g.origin[2],
+            );
             gl.uniform_1_f32(loc("probe_spacing").as_ref(), g.spacing);
         }
     }

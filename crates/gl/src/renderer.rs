@@ -661,7 +661,11 @@ impl GlRenderer {
 
     /// The moving objects' placed triangles ([`radiosity_core::objects`]);
     /// the next frame draws their shadows even when the light is the same.
-    pub fn set_objects(&mut self, gl: &glow::Context, vertices: &[radiosity_core::objects::Vertex]) {
+    pub fn set_objects(
+        &mut self,
+        gl: &glow::Context,
+        vertices: &[radiosity_core::objects::Vertex],
+    ) {
         self.objects.set(gl, vertices);
         self.objects_moved = true;
     }
