@@ -71,6 +71,7 @@ fn assert_dark_room(
         "{what}: both rooms have patches, the lit one light"
     );
     let config = scene_config::SceneConfig {
+        objects: Vec::new(),
         sky: None,
         emission: BTreeMap::new(),
         camera,

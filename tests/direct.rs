@@ -218,6 +218,7 @@ fn random_lights_are_seeded_and_valid() {
     assert_ne!(format!("{a:?}"), format!("{:?}", random_lights(b, 64, 8)));
     for l in &a {
         let cfg = radiosity::core::scene_config::SceneConfig {
+            objects: Vec::new(),
             sky: None,
             emission: Default::default(),
             camera: radiosity::core::scene_config::Camera {

@@ -667,6 +667,7 @@ fn every_scene_is_valid() {
 
 fn sample_config() -> SceneConfig {
     SceneConfig {
+        objects: Vec::new(),
         sky: None,
         emission: Default::default(),
         camera: Camera {

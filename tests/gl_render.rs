@@ -716,6 +716,7 @@ fn gl_a_thin_wall_on_one_big_floor_keeps_the_dark_room_dark() {
     );
     let lit = camera([0.1, 0.9, 0.5], [x0 as f32, 0.0, 0.5]);
     let config = SceneConfig {
+        objects: Vec::new(),
         sky: None,
         emission: BTreeMap::new(),
         camera: lit.clone(),
@@ -907,6 +908,7 @@ fn gl_textured_images_match_the_cpu_renderer_when_both_filter_bilinearly() {
     let emission = BTreeMap::new();
     rt.frame(&lights, &emission);
     let config = SceneConfig {
+        objects: Vec::new(),
         sky: None,
         camera: scene_config::Camera {
             position: [1.0, 1.4, 2.45],
@@ -1005,6 +1007,7 @@ fn gl_faces_given_a_back_side_render_as_the_cpus() {
         intensity: [2.0; 3],
     };
     let config = SceneConfig {
+        objects: Vec::new(),
         sky: None,
         emission: BTreeMap::new(),
         camera: scene_config::Camera {

@@ -236,6 +236,7 @@ fn direct_view_under_a_sky_matches_mitsuba() {
     ];
     for (k, sky) in skies.into_iter().enumerate() {
         let config = SceneConfig {
+            objects: Vec::new(),
             camera: camera.clone(),
             lights: vec![Light::Directional {
                 direction: [0.3, -1.0, 0.2],
@@ -274,6 +275,7 @@ fn direct_view_under_a_sky_matches_mitsuba() {
         }
         rt.set_sky(None).unwrap();
         let no_sky = SceneConfig {
+            objects: Vec::new(),
             sky: None,
             ..config.clone()
         };

@@ -135,6 +135,7 @@ fn bake_and_light(s: f64, tag: &str) -> Lit {
     // of the voxel grid; the scales differ in the 7th digit).
     patches.sort_by_key(|p| p.0.map(|x| (x * 1e4).round() as i64));
     let config = SceneConfig {
+        objects: Vec::new(),
         sky: None,
         emission: BTreeMap::new(),
         camera: Camera {

@@ -724,6 +724,7 @@ fn looking_at(
 ) -> radiosity::core::scene_config::SceneConfig {
     use radiosity::core::scene_config::{Camera, SceneConfig};
     SceneConfig {
+        objects: Vec::new(),
         camera: Camera {
             position,
             target,

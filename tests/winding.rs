@@ -131,6 +131,7 @@ fn a_model_wound_either_way_renders_as_the_one_wound_right() {
     for (k, camera) in cameras().into_iter().enumerate() {
         let config = SceneConfig {
             sky: None,
+            objects: Vec::new(),
             emission: BTreeMap::new(),
             camera,
             lights: vec![light.clone()],

@@ -74,6 +74,7 @@ fn sample() -> BakeFile {
         samples: PatchSamples::at_centres(&centres),
         near_field: NearField::default(),
         sky: Default::default(),
+        probes: Default::default(),
         patches,
     }
 }

@@ -219,8 +219,8 @@ pub fn weigh(ends: &[RayEnd]) -> ProbeEntries {
             RayEnd::Dark => continue,
         };
         acc.0 += 1;
-        for a in 0..3 {
-            acc.1[a] += d[a];
+        for (s, x) in acc.1.iter_mut().zip(d) {
+            *s += x;
         }
     }
     if back as f64 > SOLID_FRACTION * n as f64 {
