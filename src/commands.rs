@@ -249,6 +249,22 @@ pub(crate) fn bench_frame(job: FrameJob) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `radiosity bench probes`.
+pub(crate) fn bench_probes(job: crate::cli::ProbesJob) -> anyhow::Result<()> {
+    use radiosity::bakefile::baked::{resolve_scene_path, Baked};
+    let bake = &job.bake;
+    let info = Baked::load(bake)?.info;
+    let config = frames::camera_lights(
+        job.camera_lights,
+        &resolve_scene_path(bake, &info.scene),
+        None,
+    )?;
+    let (report, _) = bench::probes::run(bake, &config, &job.options)
+        .with_context(|| format!("comparing the probes of {} with Mitsuba 3", bake.display()))?;
+    print!("{report}");
+    Ok(())
+}
+
 /// `radiosity bench voxelize`.
 pub(crate) fn bench_voxelize(
     scene: &Path,

@@ -208,6 +208,7 @@ pub(crate) fn render(job: RenderJob) -> anyhow::Result<()> {
         &args.backend,
         args.shadow_resolution,
         budget,
+        args.probes,
     )?;
     finite_image(&img, &config)?;
     let exposure = write_image(&args.output, format, &img, args.exposure)?;
@@ -276,6 +277,7 @@ pub(crate) fn draw_headless(
     backend: &str,
     shadow_resolution: usize,
     shadow_budget: Option<u64>,
+    probe_view: bool,
 ) -> anyhow::Result<(radiosity::runtime::render::Image, String)> {
     use radiosity::runtime::render::render;
     use radiosity::runtime::texture::Albedo;
@@ -333,6 +335,15 @@ pub(crate) fn draw_headless(
                     .context("loading the camera-and-lights file's objects")?;
                 r.set_objects(gl, &verts);
             }
+            if probe_view {
+                if rt.baked.probes.is_empty() {
+                    anyhow::bail!(
+                        "--probes: the bake has no irradiance probes (baked with --probe-spacing 0, \
+                         or before probes existed): bake again"
+                    );
+                }
+                r.set_probe_view(gl, true);
+            }
             let start = std::time::Instant::now();
             let fs = r.frame(gl, &config.frame_lights(), &config.emission)?;
             let img = r.render(gl, &config.camera, view, (width, height), &config.emission)?;
@@ -361,6 +372,11 @@ pub(crate) fn draw_headless(
             (img, s)
         }
         None => {
+            if probe_view {
+                anyhow::bail!(
+                    "--probes draws on the GL back end only: add --backend gl (software GL works)"
+                );
+            }
             if !config.objects.is_empty() {
                 eprintln!(
                     "warning: the {} moving object(s) of the camera-and-lights file are drawn by \
@@ -581,6 +597,7 @@ pub(crate) fn view(job: ViewJob) -> anyhow::Result<()> {
                 "auto",
                 args.shadow_resolution,
                 budget,
+                false,
             )?;
             finite_image(&img, &config)?;
             let format = headless_format.expect("checked with --headless-to");

@@ -42,6 +42,7 @@ fn run(job: Job) -> anyhow::Result<()> {
         Job::Skips(options) => c::bench_skips(options),
         Job::Sweep(options) => c::bench_sweep(options),
         Job::Frame(job) => c::bench_frame(job),
+        Job::Probes(job) => c::bench_probes(job),
         Job::Voxelize {
             scene,
             voxel_sizes,

@@ -10,6 +10,7 @@ pub mod form_factor;
 pub mod frame;
 pub mod frame_gl;
 pub mod images;
+pub mod probes;
 pub mod skips;
 pub mod stress;
 pub mod svg_plot;

@@ -189,6 +189,24 @@ pub(crate) enum BenchCommand {
         #[command(flatten)]
         device: DeviceArgs,
     },
+    /// The irradiance probes against Mitsuba 3's irradiance meter at the
+    /// probes, about six directions (and our path tracer beside it).
+    Probes {
+        /// The bake file.
+        bake: PathBuf,
+        /// The camera and lights (default: the scene's NAME.json).
+        #[arg(long, value_name = "FILE.json")]
+        camera_lights: Option<PathBuf>,
+        /// Probes compared, spread over the valid ones.
+        #[arg(long, default_value_t = 24)]
+        probes: usize,
+        /// Mitsuba paths per probe and direction (even, ≥ 2).
+        #[arg(long, default_value_t = 8192)]
+        spp: usize,
+        /// Our path tracer's paths per probe and direction (0: not run).
+        #[arg(long, default_value_t = 4096)]
+        paths: usize,
+    },
     /// Voxelization: OpenCL against the CPU reference at several voxel sizes.
     Voxelize {
         /// The scene file.
@@ -318,6 +336,10 @@ pub(crate) struct RenderArgs {
     /// Also write the view's linear radiance, before exposure, as PFM.
     #[arg(long, value_name = "OUT.pfm")]
     pub(crate) hdr: Option<PathBuf>,
+    /// Draw the probe view: a sphere at each irradiance probe, shaded by
+    /// its irradiance (the GL back end: --backend gl).
+    #[arg(long)]
+    pub(crate) probes: bool,
     /// Exposure (default: automatic, 0.18 over the log-average luminance).
     #[arg(long, allow_negative_numbers = true)]
     pub(crate) exposure: Option<f32>,

@@ -52,6 +52,7 @@ pub(crate) enum Job {
     Skips(bench::skips::SkipsOptions),
     Sweep(SweepOptions),
     Frame(FrameJob),
+    Probes(ProbesJob),
     Voxelize {
         scene: PathBuf,
         voxel_sizes: Vec<f64>,
@@ -131,6 +132,13 @@ pub(crate) struct FrameJob {
     pub(crate) bake: PathBuf,
     pub(crate) camera_lights: Option<PathBuf>,
     pub(crate) options: bench::frame::FrameBenchOptions,
+}
+
+/// `bench probes`.
+pub(crate) struct ProbesJob {
+    pub(crate) bake: PathBuf,
+    pub(crate) camera_lights: Option<PathBuf>,
+    pub(crate) options: bench::probes::ProbeBenchOptions,
 }
 
 /// `bench compression`: the scenes each with its patch count.
@@ -254,6 +262,25 @@ fn bench_job(which: BenchCommand) -> anyhow::Result<Job> {
                     selection: selection(device)?,
                     classic: !no_classic,
                 },
+            })
+        }
+        BenchCommand::Probes {
+            bake,
+            camera_lights,
+            probes,
+            spp,
+            paths,
+        } => {
+            if spp < 2 || spp % 2 != 0 {
+                bail!("--spp {spp}: must be even and at least 2");
+            }
+            if probes == 0 {
+                bail!("--probes must be at least 1");
+            }
+            Job::Probes(ProbesJob {
+                bake,
+                camera_lights,
+                options: bench::probes::ProbeBenchOptions { probes, spp, paths },
             })
         }
         BenchCommand::Voxelize {

@@ -19,6 +19,7 @@
 
 pub mod controls;
 pub mod keys;
+pub mod objects;
 pub mod sky;
 
 use crate::core::scene_config::SceneConfig;
@@ -38,6 +39,7 @@ use glutin::display::{GetGlDisplay, GlDisplay};
 use glutin::surface::{GlSurface, Surface, SwapInterval, WindowSurface};
 use glutin_winit::{DisplayBuilder, GlWindow};
 use keys::KeyScript;
+use objects::ObjectEdit;
 use std::ffi::CString;
 use std::num::NonZeroU32;
 use std::path::PathBuf;
@@ -111,6 +113,9 @@ pub enum ViewerError {
     /// A screenshot or the camera/lights file could not be written.
     #[error("{0}")]
     Save(String),
+    /// A moving object's mesh could not be loaded.
+    #[error("{0}")]
+    Objects(String),
 }
 
 /// What a run did.
@@ -138,6 +143,7 @@ Tab: next light; arrows, PageUp/PageDown: move it; I J K L: turn it
 N: add a point light here; B: a spot looking ahead; G: a sun shining ahead; Delete: remove
 M: emissive materials off / on; X: automatic exposure again
 Y: next sky (the file's, none, sun and sky, overcast, clear); R F: sun up, down; U O: sun round
+T: next moving object (arrows, PageUp/PageDown move it, J L turn it), past the last: the lights; V: probe view
 P or F12: screenshot; F5 or Ctrl+S: save camera and lights; H: help; Esc: quit";
 
 struct State {
@@ -155,6 +161,10 @@ struct App {
     cfg: ViewerConfig,
     camera: CameraRig,
     lights: LightRig,
+    objects: objects::ObjectRig,
+    /// The probe view is on, and what the renderer last showed.
+    probe_view: bool,
+    probe_view_shown: Option<bool>,
     sky: sky::SkyRig,
     /// The sky last given to the run time and the renderer.
     applied_sky: Option<Option<crate::core::sky::Sky>>,
@@ -211,6 +221,10 @@ pub fn run(rt: Runtime, cfg: ViewerConfig) -> Result<ViewerReport, ViewerError> 
     let mut app = App {
         camera: CameraRig::new(&cfg.config.camera),
         lights: LightRig::new(&cfg.config, diagonal, emissive),
+        objects: objects::ObjectRig::new(&cfg.config.objects, diagonal)
+            .map_err(|e| ViewerError::Objects(e.to_string()))?,
+        probe_view: false,
+        probe_view_shown: None,
         sky: sky::SkyRig::new(cfg.config.sky.clone()),
         applied_sky: None,
         view: View::Final,
@@ -387,7 +401,34 @@ impl App {
             &mut state.renderer,
         );
         let lights = self.sky.frame_lights(&self.lights.lights);
+        // Moved objects: their triangles to the renderer (the next frame
+        // draws their shadows), and the probes they read kept current by
+        // the CPU run time (every probe while the probe view is on).
+        let moved = self.objects.take_changed();
+        if moved {
+            state.renderer.set_objects(gl, &self.objects.vertices());
+        }
+        let view_changed = self.probe_view_shown != Some(self.probe_view);
+        if view_changed {
+            state.renderer.set_probe_view(gl, self.probe_view);
+            self.probe_view_shown = Some(self.probe_view);
+        }
         if self.patch_light == PatchLight::Cpu {
+            if moved || view_changed {
+                let demand = (!self.probe_view).then(|| {
+                    let grid = self.rt.baked.probes.grid;
+                    let mut d: Vec<usize> = self
+                        .objects
+                        .bounds()
+                        .into_iter()
+                        .flat_map(|(lo, hi)| crate::runtime::probes::needed(&grid, lo, hi))
+                        .collect();
+                    d.sort_unstable();
+                    d.dedup();
+                    d
+                });
+                self.rt.set_probe_demand(demand);
+            }
             let fs = self.rt.frame(&lights, &self.lights.emission);
             if !fs.unchanged {
                 self.cpu_ms = 1e3 * fs.seconds_total;
@@ -399,6 +440,9 @@ impl App {
                 self.rt.h(),
                 self.rt.h_points(),
             )?;
+            if !fs.unchanged || moved || view_changed {
+                state.renderer.set_probe_sh(gl, self.rt.probe_sh());
+            }
         } else {
             state.renderer.frame(gl, &lights, &self.lights.emission)?;
         }
@@ -534,6 +578,7 @@ impl App {
             lights: self.lights.lights.clone(),
             emission: self.lights.emission.clone(),
             sky: self.sky.current(),
+            objects: self.objects.placements.clone(),
             ..self.cfg.config.clone()
         };
         c.save(&self.cfg.save_to)
@@ -550,6 +595,7 @@ impl App {
         let cam = self.camera.clone();
         let turn = 5f32.to_radians();
         let edit = |e: Edit, s: &mut App| s.lights.apply(e, &cam);
+        let on_object = self.objects.selected.is_some();
         match code {
             KeyCode::Escape => el.exit(),
             KeyCode::Digit1 => self.view = View::Final,
@@ -565,6 +611,31 @@ impl App {
             KeyCode::KeyQ => self.camera.fly(Vec3::NEG_Y, step),
             KeyCode::KeyE => self.camera.fly(Vec3::Y, step),
             KeyCode::Tab => self.lights.select_next(),
+            KeyCode::KeyT => {
+                self.objects.select_next();
+                eprintln!(
+                    "{}",
+                    match self.objects.selected {
+                        Some(_) => self.objects.describe(),
+                        None => format!("the keys move lights: {}", self.lights.describe()),
+                    }
+                );
+            }
+            KeyCode::KeyV => self.probe_view = !self.probe_view,
+            KeyCode::ArrowLeft if on_object => {
+                self.objects.apply(ObjectEdit::Move(Vec3::NEG_X), &cam)
+            }
+            KeyCode::ArrowRight if on_object => self.objects.apply(ObjectEdit::Move(Vec3::X), &cam),
+            KeyCode::ArrowUp if on_object => self.objects.apply(ObjectEdit::Move(Vec3::Z), &cam),
+            KeyCode::ArrowDown if on_object => {
+                self.objects.apply(ObjectEdit::Move(Vec3::NEG_Z), &cam)
+            }
+            KeyCode::PageUp if on_object => self.objects.apply(ObjectEdit::Move(Vec3::Y), &cam),
+            KeyCode::PageDown if on_object => {
+                self.objects.apply(ObjectEdit::Move(Vec3::NEG_Y), &cam)
+            }
+            KeyCode::KeyJ if on_object => self.objects.apply(ObjectEdit::Turn(15.0), &cam),
+            KeyCode::KeyL if on_object => self.objects.apply(ObjectEdit::Turn(-15.0), &cam),
             KeyCode::ArrowLeft => edit(Edit::Move(Vec3::NEG_X), self),
             KeyCode::ArrowRight => edit(Edit::Move(Vec3::X), self),
             KeyCode::ArrowUp => edit(Edit::Move(Vec3::Z), self),

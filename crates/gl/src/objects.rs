@@ -4,7 +4,9 @@
 //! the scene with the lights' direct light through the shadow maps (which
 //! they are drawn into as well, so they cast shadows) and the probes'
 //! irradiance (`probe_lookup.glsl`). The CPU reference of the lookup is
-//! `radiosity_runtime::probes::Lookup` (tests/gl_probes.rs).
+//! `radiosity_runtime::probes::Lookup` (tests/gl_probes.rs). The probe view
+//! draws a small white sphere at each used probe, shaded by that probe's
+//! own irradiance about the sphere's normal.
 
 use super::direct::{
     BVH_NODE_BINDING, BVH_TRI_BINDING, LIGHT, LIGHT_BINDING, RAY_BINDING, SHADOW_RAY, VIEW_BINDING,
@@ -18,12 +20,42 @@ use radiosity_runtime::render::View;
 const VERTEX: &str = include_str!("../glsl/object.vert");
 const FRAGMENT: &str = include_str!("../glsl/object.frag");
 
-/// The objects' geometry and program.
+/// A vertex as drawn: the object's, and the probe whose sphere it belongs
+/// to in the probe view (−1 for an object).
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C)]
+struct GpuVertex {
+    v: Vertex,
+    probe: f32,
+}
+
+/// Triangles of a sphere of unit radius (a UV sphere of 16 × 8).
+fn unit_sphere() -> Vec<([f32; 3], [f32; 3])> {
+    let (seg, rings) = (16, 8);
+    let p = |r: usize, s: usize| -> [f32; 3] {
+        let th = std::f32::consts::PI * r as f32 / rings as f32;
+        let ph = 2.0 * std::f32::consts::PI * s as f32 / seg as f32;
+        [th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin()]
+    };
+    let mut out = Vec::new();
+    for r in 0..rings {
+        for s in 0..seg {
+            let (a, b, c, d) = (p(r, s), p(r, s + 1), p(r + 1, s + 1), p(r + 1, s));
+            for v in [a, b, c, a, c, d] {
+                out.push((v, v));
+            }
+        }
+    }
+    out
+}
+
+/// The objects' geometry (and the probe view's spheres) and program.
 pub struct GlObjects {
     pub program: glow::Program,
-    vao: glow::VertexArray,
-    vbo: glow::Buffer,
-    vertices: usize,
+    /// The objects' and the probe spheres' arrays.
+    vao: [glow::VertexArray; 2],
+    vbo: [glow::Buffer; 2],
+    vertices: [usize; 2],
 }
 
 impl GlObjects {
@@ -52,55 +84,99 @@ impl GlObjects {
                 ("PROBE_STATE_BINDING", STATE_BINDING),
             ],
         )?;
-        // SAFETY: object creation and attribute setup on the current
-        // context.
-        let (vao, vbo) = unsafe {
-            let vao = gl.create_vertex_array().map_err(GlError::Call)?;
-            let vbo = gl.create_buffer().map_err(GlError::Call)?;
-            gl.bind_vertex_array(Some(vao));
-            gl.bind_buffer(glow::ARRAY_BUFFER, Some(vbo));
-            let stride = std::mem::size_of::<Vertex>() as i32;
-            for (k, offset) in [0, 12, 24].into_iter().enumerate() {
-                gl.enable_vertex_attrib_array(k as u32);
-                gl.vertex_attrib_pointer_f32(k as u32, 3, glow::FLOAT, false, stride, offset);
+        let make = || -> Result<(glow::VertexArray, glow::Buffer), GlError> {
+            // SAFETY: object creation and attribute setup on the current
+            // context.
+            unsafe {
+                let vao = gl.create_vertex_array().map_err(GlError::Call)?;
+                let vbo = gl.create_buffer().map_err(GlError::Call)?;
+                gl.bind_vertex_array(Some(vao));
+                gl.bind_buffer(glow::ARRAY_BUFFER, Some(vbo));
+                let stride = std::mem::size_of::<GpuVertex>() as i32;
+                for (k, offset) in [0, 12, 24].into_iter().enumerate() {
+                    gl.enable_vertex_attrib_array(k as u32);
+                    gl.vertex_attrib_pointer_f32(k as u32, 3, glow::FLOAT, false, stride, offset);
+                }
+                gl.enable_vertex_attrib_array(3);
+                gl.vertex_attrib_pointer_f32(3, 1, glow::FLOAT, false, stride, 36);
+                gl.bind_vertex_array(None);
+                Ok((vao, vbo))
             }
-            gl.bind_vertex_array(None);
-            (vao, vbo)
         };
+        let (a, b) = (make()?, make()?);
         Ok(GlObjects {
             program,
-            vao,
-            vbo,
-            vertices: 0,
+            vao: [a.0, b.0],
+            vbo: [a.1, b.1],
+            vertices: [0, 0],
         })
     }
 
     /// The placed triangles of every object (three vertices a triangle).
     pub fn set(&mut self, gl: &glow::Context, vertices: &[Vertex]) {
-        // SAFETY: a buffer upload on the current context.
-        unsafe {
-            gl.bind_buffer(glow::ARRAY_BUFFER, Some(self.vbo));
-            gl.buffer_data_u8_slice(glow::ARRAY_BUFFER, bytes_of(vertices), glow::DYNAMIC_DRAW);
-            gl.bind_buffer(glow::ARRAY_BUFFER, None);
-        }
-        self.vertices = vertices.len();
+        let v: Vec<GpuVertex> = vertices
+            .iter()
+            .map(|&v| GpuVertex { v, probe: -1.0 })
+            .collect();
+        self.upload(gl, 0, &v);
     }
 
-    /// Whether there is anything to draw.
+    /// The probe view: a white sphere of `radius` at each of `positions`
+    /// (probe index, position), shaded with that probe's irradiance alone;
+    /// none when empty.
+    pub fn set_probe_view(
+        &mut self,
+        gl: &glow::Context,
+        positions: &[(usize, [f64; 3])],
+        radius: f32,
+    ) {
+        let sphere = unit_sphere();
+        let mut v = Vec::with_capacity(positions.len() * sphere.len());
+        for &(p, c) in positions {
+            for &(q, n) in &sphere {
+                v.push(GpuVertex {
+                    v: Vertex {
+                        position: std::array::from_fn(|a| c[a] as f32 + radius * q[a]),
+                        normal: n,
+                        albedo: [1.0; 3],
+                    },
+                    probe: p as f32,
+                });
+            }
+        }
+        self.upload(gl, 1, &v);
+    }
+
+    fn upload(&mut self, gl: &glow::Context, k: usize, v: &[GpuVertex]) {
+        // SAFETY: a buffer upload on the current context.
+        unsafe {
+            gl.bind_buffer(glow::ARRAY_BUFFER, Some(self.vbo[k]));
+            gl.buffer_data_u8_slice(glow::ARRAY_BUFFER, bytes_of(v), glow::DYNAMIC_DRAW);
+            gl.bind_buffer(glow::ARRAY_BUFFER, None);
+        }
+        self.vertices[k] = v.len();
+    }
+
+    /// Whether there is no object to draw (the probe view aside).
     pub fn is_empty(&self) -> bool {
-        self.vertices == 0
+        self.vertices[0] == 0
+    }
+
+    /// Whether nothing at all is drawn.
+    pub fn nothing_to_draw(&self) -> bool {
+        self.vertices == [0, 0]
     }
 
     /// Draws the positions with the bound (depth) program: attribute 0 is
     /// the position, as shadow.vert reads it.
     pub fn draw_depth(&self, gl: &glow::Context) {
-        if self.vertices == 0 {
+        if self.vertices[0] == 0 {
             return;
         }
         // SAFETY: a draw on the current context.
         unsafe {
-            gl.bind_vertex_array(Some(self.vao));
-            gl.draw_arrays(glow::TRIANGLES, 0, self.vertices as i32);
+            gl.bind_vertex_array(Some(self.vao[0]));
+            gl.draw_arrays(glow::TRIANGLES, 0, self.vertices[0] as i32);
             gl.bind_vertex_array(None);
         }
     }
@@ -117,7 +193,7 @@ impl GlObjects {
         probes: Option<&GlProbes>,
         set_lights: impl Fn(glow::Program),
     ) {
-        if self.vertices == 0 {
+        if self.nothing_to_draw() {
             return;
         }
         // SAFETY: binds, uniforms and a draw on the current context.
@@ -151,8 +227,12 @@ impl GlObjects {
                     View::Weights => 4,
                 },
             );
-            gl.bind_vertex_array(Some(self.vao));
-            gl.draw_arrays(glow::TRIANGLES, 0, self.vertices as i32);
+            for k in 0..2 {
+                if self.vertices[k] > 0 && (k == 0 || probes.is_some()) {
+                    gl.bind_vertex_array(Some(self.vao[k]));
+                    gl.draw_arrays(glow::TRIANGLES, 0, self.vertices[k] as i32);
+                }
+            }
             gl.bind_vertex_array(None);
         }
     }
@@ -162,8 +242,10 @@ impl GlObjects {
         // SAFETY: objects of this context, not used after.
         unsafe {
             gl.delete_program(self.program);
-            gl.delete_vertex_array(self.vao);
-            gl.delete_buffer(self.vbo);
+            for k in 0..2 {
+                gl.delete_vertex_array(self.vao[k]);
+                gl.delete_buffer(self.vbo[k]);
+            }
         }
     }
 }

@@ -29,6 +29,7 @@ pub struct GlProbes {
     /// radiance, coefficients, states.
     buffers: [glow::Buffer; 9],
     pub grid: ProbeGrid,
+    states: Vec<ProbeState>,
     count: usize,
     n: usize,
     has_sky: bool,
@@ -86,6 +87,7 @@ impl GlProbes {
             program,
             buffers,
             grid,
+            states: probes.states.clone(),
             count,
             n,
             has_sky: false,
@@ -170,9 +172,14 @@ impl GlProbes {
         }
     }
 
-    /// Whether probe states say `Solid` as the shader expects (1).
-    pub fn solid_code() -> u32 {
-        ProbeState::Solid as u32
+    /// The used (not solid) probes and their positions.
+    pub fn used_positions(&self) -> Vec<(usize, [f64; 3])> {
+        self.states
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.is_used())
+            .map(|(p, _)| (p, self.grid.position(p)))
+            .collect()
     }
 
     /// Frees the GPU objects.

@@ -646,7 +646,7 @@ impl GlRenderer {
         );
         self.timers.end(gl);
         r?;
-        if !self.objects.is_empty() {
+        if !self.objects.nothing_to_draw() {
             let (w, h) = self.shade.size();
             let vp = super::shade::camera_matrix(camera, w, h, self.scene.lo, self.scene.hi);
             let bvh = self.direct.bvh_buffers();
@@ -668,6 +668,17 @@ impl GlRenderer {
     ) {
         self.objects.set(gl, vertices);
         self.objects_moved = true;
+    }
+
+    /// Shows (`true`) or hides the probe view: a sphere of 0.08 of the
+    /// probe spacing at each used probe, shaded by its irradiance.
+    pub fn set_probe_view(&mut self, gl: &glow::Context, on: bool) {
+        let spheres: Vec<(usize, [f64; 3])> = match (&self.probes, on) {
+            (Some(p), true) => p.used_positions(),
+            _ => Vec::new(),
+        };
+        let radius = self.probes.as_ref().map_or(0.0, |p| 0.08 * p.grid.spacing);
+        self.objects.set_probe_view(gl, &spheres, radius);
     }
 
     /// The probes' coefficients from the CPU run time
