@@ -121,13 +121,13 @@ fn band_two_from_the_entries_matches_brute_force() {
     );
     let (mut got, mut want) = (Vec::new(), Vec::new());
     for (k, &p) in used.iter().enumerate() {
-        let sh = decoded.probe(p, &b, None);
+        let sh = decoded.probe(p, &b, None, &[]);
         for n_dir in AXES {
             let e = irradiance(&sh, n_dir.map(|v| v as f32));
             got.push(e.map(f64::from));
             let mut sum = [0.0f64; 3];
             for (d, end) in brute_dirs.iter().zip(&brute_ends[k]) {
-                if let RayEnd::Patch(j) = end {
+                if let RayEnd::Surface { patch: Some(j), .. } = end {
                     let cos = d[0] * n_dir[0] + d[1] * n_dir[1] + d[2] * n_dir[2];
                     if cos > 0.0 {
                         for c in 0..3 {
@@ -153,8 +153,9 @@ fn band_two_from_the_entries_matches_brute_force() {
         used[0],
         &std::array::from_fn(|c| b.iter().map(|v| v[c]).collect()),
         None,
+        &[],
     );
-    let fast = decoded.probe(used[0], &b, None);
+    let fast = decoded.probe(used[0], &b, None, &[]);
     for l in 0..9 {
         for c in 0..3 {
             // Two orders of f32 sums over ~300 entries: a few ulp of the

@@ -176,6 +176,17 @@ pub fn run(
     if !(den > 0.0 && num.is_finite()) {
         bail!("the meter read no light at the chosen probes (is the scene lit?)");
     }
+    // The largest squared differences, for the report.
+    let mut worst: Vec<(f64, usize, usize)> = Vec::new();
+    for (i, _) in chosen.iter().enumerate() {
+        for a in 0..6 {
+            let e = ours[6 * i + a];
+            let m = means[6 * i + a];
+            let d2: f64 = (0..3).map(|c| (f64::from(e[c]) - m[c]).powi(2)).sum();
+            worst.push((d2, i, a));
+        }
+    }
+    worst.sort_by(|x, y| y.0.total_cmp(&x.0));
     let raw = (num / den).sqrt();
     let noise = (noise2 / den).sqrt();
     let error = ((num - noise2).max(0.0) / den).sqrt();
@@ -234,6 +245,36 @@ pub fn run(
             "| our path tracer at the same points and normals ({} paths) against the meter | {:.2} % relative RMS (both noises in it) |",
             options.paths,
             100.0 * e
+        )?;
+    }
+    writeln!(
+        out,
+        "\nThe largest differences (their share of the squared error):\n"
+    )?;
+    writeln!(
+        out,
+        "| probe | position | normal | probes | meter | share |"
+    )?;
+    writeln!(out, "|---|---|---|---|---|---|")?;
+    for &(d2, i, a) in worst.iter().take(5) {
+        let x = probes.grid.position(chosen[i]);
+        let m = means[6 * i + a];
+        let e = ours[6 * i + a];
+        writeln!(
+            out,
+            "| {} | [{:.3}, {:.3}, {:.3}] | {:?} | [{:.4}, {:.4}, {:.4}] | [{:.4}, {:.4}, {:.4}] | {:.1} % |",
+            chosen[i],
+            x[0],
+            x[1],
+            x[2],
+            AXES[a],
+            e[0],
+            e[1],
+            e[2],
+            m[0],
+            m[1],
+            m[2],
+            100.0 * d2 / num
         )?;
     }
     Ok((out, figures))

@@ -18,6 +18,7 @@ pub enum ObjectEdit {
 }
 
 /// The objects, their meshes and the selection.
+#[derive(Debug)]
 pub struct ObjectRig {
     pub placements: Vec<Placement>,
     meshes: Vec<Mesh>,

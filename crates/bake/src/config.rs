@@ -127,7 +127,7 @@ impl BakeConfig {
     /// key; not the device, the output or the exports).
     pub fn cache_key(&self) -> String {
         format!(
-            "v{} {:?} {:?} {:?} {:?} {:?} {} near{} far{} probes{:?}{}",
+            "v{} {:?} {:?} {:?} {:?} {:?} {} near{} far{} probes{}{:?}{}",
             radiosity_bakefile::FORMAT_VERSION,
             self.resolution,
             self.form_factor,
@@ -137,6 +137,7 @@ impl BakeConfig {
             self.error_lights,
             self.near_field_rays,
             self.near_field_min_form_factor,
+            radiosity_bakefile::probes::PROBE_VERSION,
             self.probes,
             if self.two_sided { " two-sided" } else { "" }
         )

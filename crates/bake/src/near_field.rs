@@ -200,7 +200,7 @@ pub fn build(
                     let face = receiver_cell(fu, fv);
                     open[2][face] += 1;
                     let (patch, y) = match tracer.trace(x, nrm, cosine_direction(nrm, r[2], r[3])) {
-                        Hit::Owned { patch, y } => (patch, y),
+                        Hit::Owned { patch, y, .. } => (patch, y),
                         Hit::Escaped => {
                             open[1][own] += 1;
                             continue;

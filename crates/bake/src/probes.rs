@@ -7,7 +7,8 @@
 //! ([`crate::form_factor::rays`]): a ray that meets a patch's surface adds
 //! `(4/N) Y_lm(ω)` to that patch's weights, one that leaves the scene
 //! `(4π/N) Y_lm(ω)` to its sky cell's, one that meets the back of a
-//! surface counts towards the probe being in a solid.
+//! surface counts towards the probe being in a solid; one that meets an
+//! emissive face also adds to its material's emission entry.
 
 use crate::error::BakeError;
 use crate::form_factor::rays::{with_tracer, Hit, Tracer};
@@ -95,6 +96,7 @@ pub struct ProbeStats {
     /// Patch and sky entries stored.
     pub entries: u64,
     pub sky_entries: u64,
+    pub emission_entries: u64,
     /// The section's bytes.
     pub bytes: u64,
 }
@@ -112,14 +114,17 @@ pub fn fibonacci_direction(k: usize, n: usize) -> [f64; 3] {
 /// Where a probe's ray ends.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RayEnd {
-    /// On patch `j` (matrix order before reordering, as the file's).
-    Patch(u32),
+    /// On a front face: the patch that owns the point (matrix order before
+    /// reordering, as the file's; `None`: a covered point no patch owns),
+    /// and the face's material when it emits.
+    Surface {
+        patch: Option<u32>,
+        emitter: Option<u32>,
+    },
     /// Out of the scene through sky cell `c`.
     Sky(u8),
     /// On the back of a surface.
     Back,
-    /// On a surface point no patch owns (covered; dark).
-    Dark,
 }
 
 /// The grid over `scene`'s bounds at `spacing`, centred on them; an error
@@ -166,28 +171,40 @@ pub fn trace(
     dirs: &[[f64; 3]],
 ) -> Vec<Vec<RayEnd>> {
     with_tracer(scene, vox, |tracer, _, _| {
-        trace_with(tracer, patch_index_of, points, dirs)
+        trace_with(tracer, scene, patch_index_of, points, dirs)
     })
 }
 
 fn trace_with(
     tracer: &Tracer,
+    scene: &Scene,
     patch_index_of: &[Option<u32>],
     points: &[[f64; 3]],
     dirs: &[[f64; 3]],
 ) -> Vec<Vec<RayEnd>> {
+    let emitter = |tri: u32| {
+        let m = scene.triangle_material[tri as usize];
+        scene.materials[m as usize]
+            .emission
+            .iter()
+            .any(|&e| e > 0.0)
+            .then_some(m)
+    };
     points
         .par_iter()
         .map(|&x| {
             dirs.iter()
                 .map(|&d| match tracer.trace(x, d, d) {
-                    Hit::Owned { patch, .. } => match patch_index_of[patch as usize] {
-                        Some(j) => RayEnd::Patch(j),
-                        None => RayEnd::Dark,
+                    Hit::Owned { patch, tri, .. } => RayEnd::Surface {
+                        patch: patch_index_of[patch as usize],
+                        emitter: emitter(tri),
+                    },
+                    Hit::Unowned { tri } => RayEnd::Surface {
+                        patch: None,
+                        emitter: emitter(tri),
                     },
                     Hit::Escaped => RayEnd::Sky(cell(d) as u8),
                     Hit::Back => RayEnd::Back,
-                    Hit::Unowned => RayEnd::Dark,
                 })
                 .collect()
         })
@@ -201,26 +218,33 @@ fn trace_with(
 pub fn weigh(ends: &[RayEnd]) -> ProbeEntries {
     let n = ends.len();
     // Per target: rays and the sum of their directions.
-    let mut patches: std::collections::BTreeMap<u32, (u32, [f64; 3])> = Default::default();
+    type Acc = (u32, [f64; 3]);
+    let mut patches: std::collections::BTreeMap<u32, Acc> = Default::default();
+    let mut emitters: std::collections::BTreeMap<u32, Acc> = Default::default();
     let mut sky = vec![(0u32, [0.0f64; 3]); CELLS];
     let (mut back, mut out) = (0usize, 0usize);
-    for (k, e) in ends.iter().enumerate() {
-        let d = fibonacci_direction(k, n);
-        let acc = match *e {
-            RayEnd::Patch(j) => patches.entry(j).or_insert((0, [0.0; 3])),
-            RayEnd::Sky(c) => {
-                out += 1;
-                &mut sky[usize::from(c)]
-            }
-            RayEnd::Back => {
-                back += 1;
-                continue;
-            }
-            RayEnd::Dark => continue,
-        };
+    let add = |acc: &mut Acc, d: [f64; 3]| {
         acc.0 += 1;
         for (s, x) in acc.1.iter_mut().zip(d) {
             *s += x;
+        }
+    };
+    for (k, e) in ends.iter().enumerate() {
+        let d = fibonacci_direction(k, n);
+        match *e {
+            RayEnd::Surface { patch, emitter } => {
+                if let Some(j) = patch {
+                    add(patches.entry(j).or_insert((0, [0.0; 3])), d);
+                }
+                if let Some(m) = emitter {
+                    add(emitters.entry(m).or_insert((0, [0.0; 3])), d);
+                }
+            }
+            RayEnd::Sky(c) => {
+                out += 1;
+                add(&mut sky[usize::from(c)], d);
+            }
+            RayEnd::Back => back += 1,
         }
     }
     if back as f64 > SOLID_FRACTION * n as f64 {
@@ -259,6 +283,10 @@ pub fn weigh(ends: &[RayEnd]) -> ProbeEntries {
             .filter(|(_, acc)| acc.0 > 0)
             .map(|(c, acc)| (c as u8, entry(acc, 4.0 * pi / n as f64)))
             .collect(),
+        emission: emitters
+            .into_iter()
+            .map(|(m, acc)| (m, entry(acc, 4.0 / n as f64)))
+            .collect(),
     }
 }
 
@@ -284,7 +312,7 @@ pub fn build(
     let entries = with_tracer(scene, vox, |tracer, _, _| {
         let mut entries = Vec::with_capacity(points.len());
         for part in points.chunks(chunk.max(1)) {
-            let ends = trace_with(tracer, patch_index_of, part, &dirs);
+            let ends = trace_with(tracer, scene, patch_index_of, part, &dirs);
             entries.extend(ends.par_iter().map(|e| weigh(e)).collect::<Vec<_>>());
         }
         entries
@@ -301,6 +329,7 @@ pub fn build(
         open: count(ProbeState::Open),
         entries: probes.patches.len() as u64,
         sky_entries: probes.sky_cells.len() as u64,
+        emission_entries: probes.emitters.len() as u64,
         bytes: probes.to_bytes().len() as u64,
     };
     Ok((probes, stats))

@@ -1,8 +1,10 @@
 // The probes' band-2 radiance coefficients from the patches' exitance
 // (host: crates/gl/src/probes.rs; CPU reference:
 // crates/runtime/src/probes.rs, Decoded::probe). One invocation per probe:
-// B_j = B0_j + rho_j H_j for each patch entry, the sky's mean radiance for
-// each sky entry, times the entry's nine decoded weights.
+// the patch's reflected exitance B0_j - E_j + rho_j H_j for each patch
+// entry, the sky's mean radiance for each sky entry, the material's
+// emitted exitance (scale Ke) for each emission entry, times the entry's
+// nine decoded weights.
 
 layout(local_size_x = 64) in;
 
@@ -17,10 +19,16 @@ layout(std430, binding = 7) readonly buffer H { float h[]; };                 //
 layout(std430, binding = 8) readonly buffer Albedo { float albedo[]; };       // 3 n, channel-major
 layout(std430, binding = 9) readonly buffer SkyRadiance { float sky_radiance[]; }; // 3 per cell
 layout(std430, binding = 10) writeonly buffer Sh { float sh[]; };             // 27 per probe: 3 l + c
+layout(std430, binding = 11) readonly buffer EmissionStarts { uint emission_starts[]; }; // probes + 1
+layout(std430, binding = 12) readonly buffer Emitters { uint emitters[]; };   // per emission entry: material
+layout(std430, binding = 13) readonly buffer EmissionWeights { float emission_weights[]; };
+layout(std430, binding = 14) readonly buffer PatchEmission { float patch_e[]; }; // 3 n, channel-major
+layout(std430, binding = 15) readonly buffer Emitted { float emitted[]; };     // 3 per material
 
 uniform uint probe_count;
 uniform uint n;
 uniform bool has_sky;
+uniform uint materials; // entries of Emitted
 
 void main() {
     uint p = gl_GlobalInvocationID.x;
@@ -29,9 +37,9 @@ void main() {
     for (int k = 0; k < 27; k++) acc[k] = 0.0;
     for (uint e = starts[p]; e < starts[p + 1u]; e++) {
         uint j = patches[e];
-        vec3 b = vec3(b0[j] + albedo[j] * h[j],
-                      b0[n + j] + albedo[n + j] * h[n + j],
-                      b0[2u * n + j] + albedo[2u * n + j] * h[2u * n + j]);
+        vec3 b = vec3(b0[j] - patch_e[j] + albedo[j] * h[j],
+                      b0[n + j] - patch_e[n + j] + albedo[n + j] * h[n + j],
+                      b0[2u * n + j] - patch_e[2u * n + j] + albedo[2u * n + j] * h[2u * n + j]);
         for (uint l = 0u; l < 9u; l++) {
             float w = weights[9u * e + l];
             acc[3u * l] += w * b.x;
@@ -49,6 +57,17 @@ void main() {
                 acc[3u * l + 1u] += w * b.y;
                 acc[3u * l + 2u] += w * b.z;
             }
+        }
+    }
+    for (uint e = emission_starts[p]; e < emission_starts[p + 1u]; e++) {
+        uint m = emitters[e];
+        if (m >= materials) continue;
+        vec3 b = vec3(emitted[3u * m], emitted[3u * m + 1u], emitted[3u * m + 2u]);
+        for (uint l = 0u; l < 9u; l++) {
+            float w = emission_weights[9u * e + l];
+            acc[3u * l] += w * b.x;
+            acc[3u * l + 1u] += w * b.y;
+            acc[3u * l + 2u] += w * b.z;
         }
     }
     for (uint k = 0u; k < 27u; k++) sh[27u * p + k] = acc[k];

@@ -26,8 +26,10 @@ const LOCAL_SIZE: u32 = 64;
 pub struct GlProbes {
     program: glow::Program,
     /// starts, patches, weights, sky starts, sky cells, sky weights, sky
-    /// radiance, coefficients, states.
-    buffers: [glow::Buffer; 9],
+    /// radiance, coefficients, states, emission starts, emitters, emission
+    /// weights, the patches' emission, the materials' emitted exitance.
+    buffers: [glow::Buffer; 14],
+    materials: usize,
     pub grid: ProbeGrid,
     states: Vec<ProbeState>,
     count: usize,
@@ -81,12 +83,26 @@ impl GlProbes {
             storage_buffer(gl, &[0u8; 4], glow::DYNAMIC_DRAW)?,
             storage_buffer(gl, &vec![0u8; 4 * 27 * count.max(1)], glow::DYNAMIC_COPY)?,
             storage_buffer(gl, &nonempty(bytes_of(&states)), glow::STATIC_DRAW)?,
+            storage_buffer(
+                gl,
+                &nonempty(bytes_of(&probes.emission_starts)),
+                glow::STATIC_DRAW,
+            )?,
+            storage_buffer(gl, &nonempty(bytes_of(&probes.emitters)), glow::STATIC_DRAW)?,
+            storage_buffer(
+                gl,
+                &nonempty(bytes_of(&flat(&probes.emission_weights))),
+                glow::STATIC_DRAW,
+            )?,
+            storage_buffer(gl, &vec![0u8; 12 * n.max(1)], glow::DYNAMIC_DRAW)?,
+            storage_buffer(gl, &[0u8; 12], glow::DYNAMIC_DRAW)?,
         ];
         super::check(gl, "uploading the probes")?;
         Ok(GlProbes {
             program,
             buffers,
             grid,
+            materials: 0,
             states: probes.states.clone(),
             count,
             n,
@@ -102,6 +118,17 @@ impl GlProbes {
             let flat: Vec<f32> = c.iter().flatten().copied().collect();
             fill_buffer(gl, self.buffers[6], bytes_of(&flat), glow::DYNAMIC_DRAW);
         }
+    }
+
+    /// The emission of the next updates: each patch's `E` (3 channels of
+    /// `n`) and each material's emitted exitance (`scale × Ke`).
+    pub fn set_emission(&mut self, gl: &glow::Context, e: &[Vec<f32>; 3], emitted: &[[f32; 3]]) {
+        let flat: Vec<f32> = e.iter().flatten().copied().collect();
+        fill_buffer(gl, self.buffers[12], bytes_of(&flat), glow::DYNAMIC_DRAW);
+        let m: Vec<f32> = emitted.iter().flatten().copied().collect();
+        let m = if m.is_empty() { vec![0.0; 3] } else { m };
+        fill_buffer(gl, self.buffers[13], bytes_of(&m), glow::DYNAMIC_DRAW);
+        self.materials = emitted.len();
     }
 
     /// Dispatches the update from the buffers `b0`, `h` and `albedo` (3 n
@@ -125,10 +152,14 @@ impl GlProbes {
             gl.bind_buffer_base(b, 8, Some(albedo));
             gl.bind_buffer_base(b, 9, Some(self.buffers[6]));
             gl.bind_buffer_base(b, 10, Some(self.buffers[7]));
+            for k in 0..5 {
+                gl.bind_buffer_base(b, 11 + k as u32, Some(self.buffers[9 + k]));
+            }
             let loc = |s: &str| gl.get_uniform_location(self.program, s);
             gl.uniform_1_u32(loc("probe_count").as_ref(), self.count as u32);
             gl.uniform_1_u32(loc("n").as_ref(), self.n as u32);
             gl.uniform_1_i32(loc("has_sky").as_ref(), self.has_sky as i32);
+            gl.uniform_1_u32(loc("materials").as_ref(), self.materials as u32);
             gl.dispatch_compute((self.count as u32).div_ceil(LOCAL_SIZE).max(1), 1, 1);
             gl.memory_barrier(glow::SHADER_STORAGE_BARRIER_BIT);
         }

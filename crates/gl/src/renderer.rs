@@ -353,6 +353,12 @@ impl GlRenderer {
         if self.last_scales.as_ref() != Some(scales) || self.sky_changed {
             // The sky's `ρ ∘ D_sky` rides with the emission into `B0`.
             let mut e = self.emission.exitance(self.n, scales);
+            if let Some(p) = &mut self.probes {
+                // The probes see the emission apart (their emission
+                // entries): the patches' part and the materials'.
+                let emitted = radiosity_runtime::probes::emitted(&self.materials, scales);
+                p.set_emission(gl, &e, &emitted);
+            }
             if let Some(b) = self.sky.b0() {
                 for (ec, bc) in e.iter_mut().zip(b) {
                     for (x, y) in ec.iter_mut().zip(bc) {

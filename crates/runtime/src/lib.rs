@@ -314,12 +314,23 @@ impl Runtime {
         if self.probe_decoded.is_empty() {
             return;
         }
-        let b = probes::exitance(&self.b0, &self.h, &self.probe_albedo);
+        // The emission apart: the probes see each emissive face's own
+        // exitance, not its patch's area mean.
+        let (e, emitted) = match &self.emission_term {
+            Some((scales, t)) => (Some(&t.b0), probes::emitted(&self.scene.materials, scales)),
+            None => (None, Vec::new()),
+        };
+        let b = probes::reflected(&self.b0, e, &self.h, &self.probe_albedo);
         if self.probe_sh.len() != self.probe_decoded.len() {
             self.probe_sh = vec![Default::default(); self.probe_decoded.len()];
         }
-        self.probe_decoded
-            .update(&b, self.sky_cells.as_deref(), which, &mut self.probe_sh);
+        self.probe_decoded.update(
+            &b,
+            self.sky_cells.as_deref(),
+            &emitted,
+            which,
+            &mut self.probe_sh,
+        );
     }
 
     /// The probes' coefficients after the last frame (empty when the bake

@@ -2,7 +2,8 @@
 //! `crates/gl/glsl/probes.comp` and of the probe lookup in
 //! `crates/gl/glsl/object.frag`. Each frame whose light changed, every
 //! used probe's band-2 radiance coefficients are summed from the patches'
-//! exitance `B = B0 + ρ∘H` and the sky's cell radiances through the baked
+//! reflected exitance `B − E = B0 − E + ρ∘H`, the emissive materials'
+//! exitance (`scale × Ke`) and the sky's cell radiances through the baked
 //! entries (`radiosity_bakefile::probes`, whose [`weights`] decodes an
 //! entry); a point of a moving object then takes the irradiance about its
 //! normal from the probes around it.
@@ -53,6 +54,9 @@ pub struct Decoded {
     pub sky_starts: Vec<u32>,
     pub sky_cells: Vec<u32>,
     pub sky_weights: Vec<[f32; COEFFICIENTS]>,
+    pub emission_starts: Vec<u32>,
+    pub emitters: Vec<u32>,
+    pub emission_weights: Vec<[f32; COEFFICIENTS]>,
     pub states: Vec<ProbeState>,
 }
 
@@ -66,6 +70,13 @@ impl Decoded {
             sky_starts: probes.sky_starts.clone(),
             sky_cells: probes.sky_cells.iter().map(|&c| u32::from(c)).collect(),
             sky_weights: probes.sky_entries.iter().map(|&e| weights(e)).collect(),
+            emission_starts: probes.emission_starts.clone(),
+            emitters: probes.emitters.clone(),
+            emission_weights: probes
+                .emission_entries
+                .iter()
+                .map(|&e| weights(e))
+                .collect(),
             states: probes.states.clone(),
         }
     }
@@ -80,10 +91,17 @@ impl Decoded {
         self.states.is_empty()
     }
 
-    /// Probe `p`'s coefficients from the patches' exitance `b`
-    /// (interleaved RGB, matrix order) and the sky's mean radiance per
-    /// cell (`None`: black); a solid probe's are zero.
-    pub fn probe(&self, p: usize, b: &[[f32; 3]], sky: Option<&[[f32; 3]]>) -> Sh {
+    /// Probe `p`'s coefficients from the patches' reflected exitance `b`
+    /// (interleaved RGB, matrix order), the sky's mean radiance per cell
+    /// (`None`: black) and the materials' emitted exitance (by material
+    /// index; materials beyond it emit nothing); a solid probe's are zero.
+    pub fn probe(
+        &self,
+        p: usize,
+        b: &[[f32; 3]],
+        sky: Option<&[[f32; 3]]>,
+        emitted: &[[f32; 3]],
+    ) -> Sh {
         let mut sh = [[0.0f32; 3]; COEFFICIENTS];
         if self.states[p] == ProbeState::Solid {
             return sh;
@@ -94,6 +112,21 @@ impl Decoded {
             let (a, e) = (self.sky_starts[p] as usize, self.sky_starts[p + 1] as usize);
             accumulate(&mut sh, &self.sky_cells[a..e], &self.sky_weights[a..e], sky);
         }
+        let (a, e) = (
+            self.emission_starts[p] as usize,
+            self.emission_starts[p + 1] as usize,
+        );
+        for k in a..e {
+            let m = self.emitters[k] as usize;
+            if let Some(v) = emitted.get(m) {
+                accumulate(
+                    &mut sh,
+                    &[0],
+                    &self.emission_weights[k..k + 1],
+                    std::slice::from_ref(v),
+                );
+            }
+        }
         sh
     }
 
@@ -103,6 +136,7 @@ impl Decoded {
         &self,
         b: &[[f32; 3]],
         sky: Option<&[[f32; 3]]>,
+        emitted: &[[f32; 3]],
         which: Option<&[usize]>,
         out: &mut [Sh],
     ) {
@@ -110,10 +144,12 @@ impl Decoded {
             None => out
                 .par_iter_mut()
                 .enumerate()
-                .for_each(|(p, o)| *o = self.probe(p, b, sky)),
+                .for_each(|(p, o)| *o = self.probe(p, b, sky, emitted)),
             Some(w) => {
-                let got: Vec<(usize, Sh)> =
-                    w.par_iter().map(|&p| (p, self.probe(p, b, sky))).collect();
+                let got: Vec<(usize, Sh)> = w
+                    .par_iter()
+                    .map(|&p| (p, self.probe(p, b, sky, emitted)))
+                    .collect();
                 for (p, sh) in got {
                     out[p] = sh;
                 }
@@ -144,15 +180,26 @@ fn accumulate(sh: &mut Sh, idx: &[u32], w: &[[f32; COEFFICIENTS]], v: &[[f32; 3]
 
 /// Every probe's coefficients straight from the file's entries (the
 /// reference of [`Decoded::update`], decoding each entry as it goes).
-pub fn update(probes: &Probes, b: &[Vec<f32>; 3], sky: Option<&[[f32; 3]]>) -> Vec<Sh> {
+pub fn update(
+    probes: &Probes,
+    b: &[Vec<f32>; 3],
+    sky: Option<&[[f32; 3]]>,
+    emitted: &[[f32; 3]],
+) -> Vec<Sh> {
     (0..probes.len())
         .into_par_iter()
-        .map(|p| probe(probes, p, b, sky))
+        .map(|p| probe(probes, p, b, sky, emitted))
         .collect()
 }
 
 /// Probe `p`'s coefficients ([`update`]'s).
-pub fn probe(probes: &Probes, p: usize, b: &[Vec<f32>; 3], sky: Option<&[[f32; 3]]>) -> Sh {
+pub fn probe(
+    probes: &Probes,
+    p: usize,
+    b: &[Vec<f32>; 3],
+    sky: Option<&[[f32; 3]]>,
+    emitted: &[[f32; 3]],
+) -> Sh {
     let mut sh = [[0.0f32; 3]; COEFFICIENTS];
     if probes.states[p] == ProbeState::Solid {
         return sh;
@@ -171,6 +218,11 @@ pub fn probe(probes: &Probes, p: usize, b: &[Vec<f32>; 3], sky: Option<&[[f32; 3
     if let Some(sky) = sky {
         for (c, e) in probes.sky_entries_of(p) {
             add(e, sky[c]);
+        }
+    }
+    for (m, e) in probes.emission_entries_of(p) {
+        if let Some(&v) = emitted.get(m) {
+            add(e, v);
         }
     }
     sh
@@ -196,13 +248,37 @@ pub fn irradiance(sh: &Sh, n: [f32; 3]) -> [f32; 3] {
     e.map(|x| x.max(0.0))
 }
 
-/// The patches' exitance `B = B0 + ρ∘H` from a frame's `B0`, `H` and the
-/// patches' albedos, interleaved RGB per patch.
-pub fn exitance(b0: &[Vec<f32>; 3], h: &[Vec<f32>; 3], albedo: &[[f32; 3]]) -> Vec<[f32; 3]> {
+/// The patches' reflected exitance `B0 − E + ρ∘H` from a frame's `B0`,
+/// its emission `E` (`None`: none), `H` and the patches' albedos,
+/// interleaved RGB per patch: what the probes' patch entries carry (the
+/// emission comes through their emission entries).
+pub fn reflected(
+    b0: &[Vec<f32>; 3],
+    e: Option<&[Vec<f32>; 3]>,
+    h: &[Vec<f32>; 3],
+    albedo: &[[f32; 3]],
+) -> Vec<[f32; 3]> {
     albedo
         .iter()
         .enumerate()
-        .map(|(j, a)| std::array::from_fn(|c| b0[c][j] + a[c] * h[c][j]))
+        .map(|(j, a)| {
+            std::array::from_fn(|c| b0[c][j] - e.map_or(0.0, |e| e[c][j]) + a[c] * h[c][j])
+        })
+        .collect()
+}
+
+/// Each material's emitted exitance under the emission `scales` (by
+/// name; 1 when absent): `scale × Ke`.
+pub fn emitted(
+    materials: &[radiosity_core::scene::Material],
+    scales: &std::collections::BTreeMap<String, f32>,
+) -> Vec<[f32; 3]> {
+    materials
+        .iter()
+        .map(|m| {
+            let s = scales.get(&m.name).copied().unwrap_or(1.0);
+            m.emission.map(|k| s * k)
+        })
         .collect()
 }
 

@@ -249,7 +249,7 @@ fn emit(
                 sky[cell(d)] += 1;
             }
             Hit::Back => c.back += 1,
-            Hit::Unowned => c.unowned += 1,
+            Hit::Unowned { .. } => c.unowned += 1,
             Hit::Owned { patch, .. } => {
                 row[patch as usize] += 1.0;
                 c.owned += 1;
@@ -269,10 +269,11 @@ pub(crate) enum Hit {
     Escaped,
     /// The back of a surface.
     Back,
-    /// A front face at `y` (world) whose piece no patch owns.
-    Unowned,
-    /// A front face at `y` of a piece of voxelization patch `patch`.
-    Owned { patch: u32, y: [f64; 3] },
+    /// A front face (scene triangle `tri`) whose piece no patch owns.
+    Unowned { tri: u32 },
+    /// A front face (scene triangle `tri`) at `y` of a piece of
+    /// voxelization patch `patch`.
+    Owned { patch: u32, y: [f64; 3], tri: u32 },
 }
 
 /// The scene as the rays see it: the original triangles' BVH (shifted to
@@ -358,8 +359,12 @@ impl Tracer<'_> {
             .find_from(self.vox, tri, y, back)
             .and_then(|p| self.vox.pieces[p].patch)
         {
-            Some(patch) => Hit::Owned { patch, y },
-            None => Hit::Unowned,
+            Some(patch) => Hit::Owned {
+                patch,
+                y,
+                tri: tri as u32,
+            },
+            None => Hit::Unowned { tri: tri as u32 },
         }
     }
 }
