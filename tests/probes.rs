@@ -10,7 +10,9 @@
 mod common;
 
 use radiosity::bake::compute::Backend;
-use radiosity::bake::probes::{fibonacci_direction, trace, weigh, ProbeOptions, RayEnd};
+use radiosity::bake::probes::{
+    fibonacci_direction, trace, weigh, ProbeOptions, ProbeSpacing, RayEnd,
+};
 use radiosity::bake::transfer_stages;
 use radiosity::bake::voxelize::Resolution;
 use radiosity::bakefile::baked::Baked;
@@ -96,8 +98,12 @@ fn band_two_from_the_entries_matches_brute_force() {
             std::array::from_fn(|c| (p.albedo[c] * f) as f32)
         })
         .collect();
-    let opts = ProbeOptions::default();
-    let spacing = opts.spacing_voxels * st.vox.stats.voxel_size;
+    let (lo, hi) = st.scene.bounds();
+    let spacing = ProbeOptions::default().spacing_for(
+        st.vox.stats.voxel_size,
+        n,
+        std::array::from_fn(|a| f64::from(hi[a] - lo[a])),
+    );
     let grid = radiosity::bake::probes::grid(&st.scene, spacing).unwrap();
     let points: Vec<[f64; 3]> = (0..grid.len()).map(|p| grid.position(p)).collect();
     let dirs = |k: usize| -> Vec<[f64; 3]> { (0..k).map(|i| fibonacci_direction(i, k)).collect() };
@@ -208,13 +214,14 @@ fn probes_match_the_path_tracer_in_the_cornell_box() {
 
 /// Probes inside a solid block and outside a closed room are marked solid
 /// and store nothing; the others are valid. A 4 × 2 × 2 room holding a
-/// 1 × 1 × 1 block, voxels of 0.25, probes every 0.5.
+/// 1 × 1 × 1 block, voxels of 0.25, probes every 0.5 (two voxels).
 #[test]
 fn probes_in_solids_are_detected() {
     let mut quads = common::box_inside([0.0; 3], [4.0, 2.0, 2.0], [0.7; 3]);
     quads.extend(common::block([1.5, 0.0, 0.5], [2.5, 1.0, 1.5], [0.5; 3]));
     let obj = common::write_quads("probes-solid", &quads);
-    let c = common::bake_config(&obj, Resolution::VoxelSize(0.25));
+    let mut c = common::bake_config(&obj, Resolution::VoxelSize(0.25));
+    c.probes.spacing = ProbeSpacing::Voxels(2.0);
     let (baked, _) = common::bake_to(c, &obj.with_file_name("scene.rad"));
     let p = &baked.probes;
     let (mut inside_block, mut free) = (0, 0);
@@ -253,7 +260,8 @@ fn no_light_leaks_through_a_thin_wall() {
         [0.7; 3],
     ));
     let obj = common::write_quads("probes-two-rooms", &quads);
-    let c = common::bake_config(&obj, Resolution::VoxelSize(0.25));
+    let mut c = common::bake_config(&obj, Resolution::VoxelSize(0.25));
+    c.probes.spacing = ProbeSpacing::Voxels(2.0);
     let (baked, _) = common::bake_to(c, &obj.with_file_name("scene.rad"));
     let light = Light::Point {
         position: [1.0, 0.6, 0.5],

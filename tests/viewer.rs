@@ -608,3 +608,107 @@ fn sky_keys_cycle_skies_and_move_the_sun_and_the_window_draws_it() {
         mean(&base)
     );
 }
+
+/// A moving object in the window: T selects the sphere the
+/// camera-and-lights file places, three presses of ← move it three steps
+/// along the camera's horizontal axis, two of J turn it 30°, V shows the
+/// probe view and V again hides it, F5 saves; the saved file places the
+/// sphere there, and the window's last frame is what `render --backend gl`
+/// draws from it (the sphere lit by the probes, with its shadow).
+#[test]
+fn keys_move_a_moving_object_that_is_saved_and_drawn() {
+    let (obj, dir) = cornell("viewer-objects");
+    let obj_s = obj.to_str().unwrap();
+    // A small closed box as the object: its mesh beside the JSON file.
+    let mut mesh = String::new();
+    for q in common::block([-1.0; 3], [1.0; 3], [0.8; 3]) {
+        for c in q.corners {
+            mesh += &format!("v {} {} {}\n", c[0], c[1], c[2]);
+        }
+    }
+    for k in 0..6 {
+        let b = 4 * k + 1;
+        mesh += &format!("f {} {} {} {}\n", b, b + 1, b + 2, b + 3);
+    }
+    std::fs::write(dir.join("cube.obj"), mesh).unwrap();
+    let json = obj.with_extension("json");
+    let mut config = radiosity::core::scene_config::load(&json).unwrap();
+    config.objects = vec![radiosity::core::objects::Placement {
+        mesh: "cube.obj".into(),
+        position: [300.0, 150.0, 250.0],
+        scale: 60.0,
+        rotation_deg: [0.0; 3],
+        resolved: None,
+    }];
+    config.save(&json).unwrap();
+    let png = dir.join("base.png");
+    let o = run(
+        &dir,
+        &[
+            &[
+                "render",
+                obj_s,
+                "--backend",
+                "gl",
+                "-o",
+                png.to_str().unwrap(),
+            ][..],
+            &SMALL[..],
+        ],
+        false,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let exposure = common::printed_exposure(&err);
+    let saved = dir.join("saved.json");
+    let o = view_with_keys(
+        &dir,
+        obj_s,
+        10,
+        "KeyT,ArrowLeft*3,KeyJ*2,KeyV,KeyV,F5",
+        &saved,
+        &exposure,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("object 1/1 cube.obj"), "{err}");
+    let edited = radiosity::core::scene_config::load(&saved).unwrap();
+    assert_eq!(edited.objects.len(), 1);
+    let scene = radiosity::core::scene::load(&obj).unwrap();
+    let (lo, hi) = scene.bounds();
+    let step = 0.01 * (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f32>().sqrt();
+    let p = &edited.objects[0];
+    let moved: Vec<f32> = (0..3)
+        .map(|k| p.position[k] - [300.0, 150.0, 250.0][k])
+        .collect();
+    assert!(
+        (moved[0].abs() - 3.0 * step).abs() < 1e-3 * step && moved[1] == 0.0 && moved[2] == 0.0,
+        "{moved:?}, step {step}"
+    );
+    assert_eq!(p.rotation_deg, [0.0, 30.0, 0.0]);
+    assert_eq!(p.mesh, "cube.obj");
+    let shot = window_is_the_saved_file(&dir, obj_s, &saved, &exposure);
+    // The cube is in the picture: the frame differs from the box without it.
+    let bare = dir.join("bare.json");
+    let mut none = edited.clone();
+    none.objects.clear();
+    none.save(&bare).unwrap();
+    let out = dir.join("bare.png");
+    let o = run(
+        &dir,
+        &[
+            &["render", obj_s, "--backend", "gl", "--exposure", &exposure][..],
+            &["--camera-lights", bare.to_str().unwrap()][..],
+            &["-o", out.to_str().unwrap()][..],
+            &SMALL[..],
+        ],
+        false,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let changed = shot
+        .pixels()
+        .zip(rgb(&out).pixels())
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(changed > 200, "{changed} pixels show the cube");
+}

@@ -480,10 +480,16 @@ pub(crate) struct BakeArgs {
     /// patch's far weights. Lower keeps more links (larger file).
     #[arg(long, value_name = "F", default_value_t = radiosity::bake::near_field::MIN_FORM_FACTOR, allow_negative_numbers = true)]
     pub(crate) near_field_min_form_factor: f64,
-    /// Irradiance probes' spacing in voxels (0: no probes): moving objects
-    /// are lit from them (docs/probes.md).
-    #[arg(long, value_name = "VOXELS", default_value_t = radiosity::bake::probes::DEFAULT_SPACING_VOXELS, allow_negative_numbers = true)]
-    pub(crate) probe_spacing: f64,
+    /// Irradiance probes' spacing: auto (one probe per 8 patches over the
+    /// scene's bounds, at least 2 voxels apart), or in voxels (0: no
+    /// probes). Moving objects are lit from them (docs/probes.md).
+    #[arg(
+        long,
+        value_name = "auto|VOXELS",
+        default_value = "auto",
+        allow_negative_numbers = true
+    )]
+    pub(crate) probe_spacing: String,
     /// Rays per irradiance probe (1..=65536).
     #[arg(long, value_name = "N", default_value_t = radiosity::bake::probes::DEFAULT_RAYS)]
     pub(crate) probe_rays: u32,

@@ -449,7 +449,14 @@ impl BakeArgs {
             near_field_rays: self.near_field_rays,
             near_field_min_form_factor: self.near_field_min_form_factor,
             probes: radiosity::bake::probes::ProbeOptions {
-                spacing_voxels: self.probe_spacing,
+                spacing: match self.probe_spacing.trim() {
+                    "auto" => radiosity::bake::probes::ProbeSpacing::Auto,
+                    v => radiosity::bake::probes::ProbeSpacing::Voxels(v.parse().map_err(|_| {
+                        anyhow::anyhow!(
+                            "--probe-spacing {v:?}: expected auto or a number of voxels (0: no probes)"
+                        )
+                    })?),
+                },
                 rays: self.probe_rays,
             },
             output: self.output,

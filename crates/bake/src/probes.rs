@@ -21,10 +21,15 @@ use radiosity_core::sky::cells::{cell, CELLS};
 use rayon::prelude::*;
 use serde::Serialize;
 
-/// Default probe spacing, in voxels: two voxels leave a probe between
-/// facing walls of any room the patches resolve, and keep the probes a
-/// fraction of the patches (Sponza at 4k: 588 probes for 3,938 patches).
-pub const DEFAULT_SPACING_VOXELS: f64 = 2.0;
+/// The closest the automatic spacing puts probes, in voxels: two voxels
+/// leave a probe between facing walls of any room the patches resolve.
+pub const MIN_AUTO_SPACING_VOXELS: f64 = 2.0;
+
+/// Patches per probe the automatic spacing aims at: a probe sees a few
+/// hundred patches (Sponza: 310, the Cornell box at 4k: 560), so its
+/// entries stay a fraction of the bake (Sponza at 4k: 588 probes, 9.5 %
+/// of the file) and the update of every probe a fraction of the gather.
+pub const PATCHES_PER_PROBE: f64 = 8.0;
 
 /// Default rays per probe: the band-2 coefficients' Monte Carlo error on a
 /// spherical Fibonacci set is a few 0.1 % of the irradiance
@@ -38,11 +43,20 @@ pub const MAX_PROBES: usize = 65_536;
 /// Most rays per probe.
 pub const MAX_RAYS: u32 = 65_536;
 
+/// How far apart the probes are.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub enum ProbeSpacing {
+    /// One probe per [`PATCHES_PER_PROBE`] patches over the scene's
+    /// bounding box, at least [`MIN_AUTO_SPACING_VOXELS`] apart.
+    Auto,
+    /// This many voxels (0: no probes).
+    Voxels(f64),
+}
+
 /// The probe options of a bake.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct ProbeOptions {
-    /// The grid's spacing in voxels (0: no probes).
-    pub spacing_voxels: f64,
+    pub spacing: ProbeSpacing,
     /// Rays per probe.
     pub rays: u32,
 }
@@ -50,7 +64,7 @@ pub struct ProbeOptions {
 impl Default for ProbeOptions {
     fn default() -> ProbeOptions {
         ProbeOptions {
-            spacing_voxels: DEFAULT_SPACING_VOXELS,
+            spacing: ProbeSpacing::Auto,
             rays: DEFAULT_RAYS,
         }
     }
@@ -59,17 +73,37 @@ impl Default for ProbeOptions {
 impl ProbeOptions {
     /// Whether the bake makes probes.
     pub fn enabled(&self) -> bool {
-        self.spacing_voxels > 0.0
+        match self.spacing {
+            ProbeSpacing::Auto => true,
+            ProbeSpacing::Voxels(v) => v > 0.0,
+        }
+    }
+
+    /// The spacing in scene units for `patches` patches of `voxel` size in
+    /// a scene whose bounds are `extent`.
+    pub fn spacing_for(&self, voxel: f64, patches: usize, extent: [f64; 3]) -> f64 {
+        match self.spacing {
+            ProbeSpacing::Voxels(v) => v * voxel,
+            ProbeSpacing::Auto => {
+                let volume: f64 = extent.iter().map(|e| e.max(voxel)).product();
+                let probes = (patches as f64 / PATCHES_PER_PROBE).max(1.0);
+                (volume / probes)
+                    .cbrt()
+                    .max(MIN_AUTO_SPACING_VOXELS * voxel)
+            }
+        }
     }
 
     /// Checks the values.
     pub fn validate(&self) -> Result<(), BakeError> {
-        if !(self.spacing_voxels.is_finite() && self.spacing_voxels >= 0.0) {
-            return Err(BakeError::InvalidOption {
-                option: "probe spacing in voxels",
-                value: self.spacing_voxels.to_string(),
-                expected: "a finite number ≥ 0 (0: no probes)".into(),
-            });
+        if let ProbeSpacing::Voxels(v) = self.spacing {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(BakeError::InvalidOption {
+                    option: "probe spacing in voxels",
+                    value: v.to_string(),
+                    expected: "a finite number ≥ 0 (0: no probes), or auto".into(),
+                });
+            }
         }
         if self.enabled() && !(1..=MAX_RAYS).contains(&self.rays) {
             return Err(BakeError::InvalidOption {
@@ -290,9 +324,9 @@ pub fn weigh(ends: &[RayEnd]) -> ProbeEntries {
     }
 }
 
-/// The stage: the grid at `options`' spacing (in `voxel_size`s), each
-/// probe traced and weighed. Probes are traced in chunks so that the ray
-/// ends held at once stay a few MB.
+/// The stage: the grid at `options`' spacing, each probe traced and
+/// weighed. Probes are traced in chunks so that the ray ends held at once
+/// stay a few MB.
 pub fn build(
     scene: &Scene,
     vox: &Voxelization,
@@ -303,7 +337,13 @@ pub fn build(
     if !options.enabled() {
         return Ok((Probes::none(), ProbeStats::default()));
     }
-    let spacing = options.spacing_voxels * vox.grid.size;
+    let (lo, hi) = scene.bounds();
+    let patches = patch_index_of.iter().filter(|p| p.is_some()).count();
+    let spacing = options.spacing_for(
+        vox.grid.size,
+        patches,
+        std::array::from_fn(|a| f64::from(hi[a] - lo[a])),
+    );
     let g = grid(scene, spacing)?;
     let rays = options.rays as usize;
     let dirs: Vec<[f64; 3]> = (0..rays).map(|k| fibonacci_direction(k, rays)).collect();

@@ -145,6 +145,13 @@ impl Decoded {
                 .par_iter_mut()
                 .enumerate()
                 .for_each(|(p, o)| *o = self.probe(p, b, sky, emitted)),
+            // A few probes (one object's): on this thread, as waking the
+            // pool costs more than they do.
+            Some(w) if w.len() <= 64 => {
+                for &p in w {
+                    out[p] = self.probe(p, b, sky, emitted);
+                }
+            }
             Some(w) => {
                 let got: Vec<(usize, Sh)> = w
                     .par_iter()
@@ -179,23 +186,50 @@ fn accumulate(sh: &mut Sh, idx: &[u32], w: &[[f32; COEFFICIENTS]], v: &[[f32; 3]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn accumulate_avx2(sh: &mut Sh, idx: &[u32], w: &[[f32; COEFFICIENTS]], v: &[[f32; 3]]) {
     use std::arch::x86_64::*;
-    let mut acc = [[_mm256_setzero_ps(); 3]; 2];
-    let mut last = [[0.0f32; 3]; 2];
-    let pairs = idx.len() / 2;
-    for k in 0..2 * pairs {
-        let (j, wk) = (idx[k] as usize, &w[k]);
-        let x = v[j];
-        let half = k & 1;
-        // SAFETY: `wk` holds nine floats; the load reads the first eight.
-        let wv = unsafe { _mm256_loadu_ps(wk.as_ptr()) };
+    // Two sets of accumulators in named variables (registers), one per
+    // entry of a pair.
+    let (mut r0, mut g0, mut b0) = (
+        _mm256_setzero_ps(),
+        _mm256_setzero_ps(),
+        _mm256_setzero_ps(),
+    );
+    let (mut r1, mut g1, mut b1) = (
+        _mm256_setzero_ps(),
+        _mm256_setzero_ps(),
+        _mm256_setzero_ps(),
+    );
+    let mut last = [0.0f32; 3];
+    let mut pairs_i = idx.chunks_exact(2);
+    let mut pairs_w = w.chunks_exact(2);
+    for (i, ww) in (&mut pairs_i).zip(&mut pairs_w) {
+        let (x0, x1) = (v[i[0] as usize], v[i[1] as usize]);
+        // SAFETY: each weight row holds nine floats; the loads read the
+        // first eight.
+        let (w0, w1) = unsafe {
+            (
+                _mm256_loadu_ps(ww[0].as_ptr()),
+                _mm256_loadu_ps(ww[1].as_ptr()),
+            )
+        };
+        r0 = _mm256_fmadd_ps(w0, _mm256_set1_ps(x0[0]), r0);
+        g0 = _mm256_fmadd_ps(w0, _mm256_set1_ps(x0[1]), g0);
+        b0 = _mm256_fmadd_ps(w0, _mm256_set1_ps(x0[2]), b0);
+        r1 = _mm256_fmadd_ps(w1, _mm256_set1_ps(x1[0]), r1);
+        g1 = _mm256_fmadd_ps(w1, _mm256_set1_ps(x1[1]), g1);
+        b1 = _mm256_fmadd_ps(w1, _mm256_set1_ps(x1[2]), b1);
         for c in 0..3 {
-            acc[half][c] = _mm256_fmadd_ps(wv, _mm256_set1_ps(x[c]), acc[half][c]);
-            last[half][c] += wk[8] * x[c];
+            last[c] += ww[0][8] * x0[c] + ww[1][8] * x1[c];
         }
     }
     let mut lanes = [[0.0f32; 8]; 3];
-    for c in 0..3 {
-        let t = _mm256_add_ps(acc[0][c], acc[1][c]);
+    for (c, t) in [
+        _mm256_add_ps(r0, r1),
+        _mm256_add_ps(g0, g1),
+        _mm256_add_ps(b0, b1),
+    ]
+    .into_iter()
+    .enumerate()
+    {
         // SAFETY: eight floats written into an array of eight.
         unsafe { _mm256_storeu_ps(lanes[c].as_mut_ptr(), t) };
     }
@@ -205,12 +239,9 @@ unsafe fn accumulate_avx2(sh: &mut Sh, idx: &[u32], w: &[[f32; COEFFICIENTS]], v
         }
     }
     for c in 0..3 {
-        sh[8][c] += last[0][c] + last[1][c];
+        sh[8][c] += last[c];
     }
-    if idx.len() % 2 == 1 {
-        let k = idx.len() - 1;
-        accumulate_portable(sh, &idx[k..], &w[k..], v);
-    }
+    accumulate_portable(sh, pairs_i.remainder(), pairs_w.remainder(), v);
 }
 
 /// The portable loop of [`accumulate`]: the channels of a coefficient
