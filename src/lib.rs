@@ -80,7 +80,10 @@
 //! 7. [`bake::mesh_map`]: per mesh vertex, up to four patches and weights,
 //!    never through a wall; [`bake::surface_map`]: the per-pixel map and the
 //!    patches' sample points; [`bake::near_field`]: per patch, its close
-//!    neighbours' cells as its rays see them ([`bakefile::near_field`]).
+//!    neighbours' cells as its rays see them ([`bakefile::near_field`]);
+//!    [`bake::probes`]: irradiance probes on a grid in the scene's empty
+//!    space, each a sparse transfer from patches, sky cells and emissive
+//!    materials to band-2 harmonics ([`bakefile::probes`]).
 //! 8. [`bakefile`]: the versioned, checksummed `.rad` file holding all of it
 //!    with its typed records ([`bakefile::records`]).
 //!
@@ -89,7 +92,11 @@
 //! correction `c` from `D` at close neighbours' points → `H = T̃ · (B0 + ρ
 //! ∘ c) + c` with `B0 = ρ ∘ D + E` straight from the compressed matrix →
 //! `H` at every pixel through the surface map → shading `L = ρ/π · (D + H)
-//! + Le`.
+//! + Le`. Moving objects ([`core::objects`]) take `ρ/π · (D + E_probes)`,
+//! the probes updated from `B0 − E + ρ ∘ H` ([`runtime::probes`]) and
+//! looked up with a shadow ray to each so that no light leaks through a
+//! wall; they cast shadows in the shadow maps and leave the patches' light
+//! as it is.
 //!
 //! ## Invariants
 //! - Every OpenCL kernel (`crates/bake/kernels/*.cl`, embedded with `include_str!`) has a
