@@ -141,6 +141,7 @@ fn bake_reports_counts_and_exports_patches() {
             "mesh map",
             "surface map",
             "near field",
+            "probes",
             "export"
         ]
     );

@@ -56,6 +56,8 @@ pub const NAMES: &[(&str, KeyCode)] = &[
     ("KeyF", KeyCode::KeyF),
     ("KeyU", KeyCode::KeyU),
     ("KeyO", KeyCode::KeyO),
+    ("KeyT", KeyCode::KeyT),
+    ("KeyV", KeyCode::KeyV),
 ];
 
 /// The most presses a script may hold (each is at least one frame).

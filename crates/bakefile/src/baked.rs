@@ -322,6 +322,9 @@ pub struct FileSummary {
     /// ([`crate::near_field`], "At the receiver"; `None`: not stored, and
     /// `H` is one value per patch).
     pub near_field_receiver: Option<u64>,
+    /// The irradiance probes: probes, used ones, entries (patch, sky,
+    /// emission together) and the section's bytes (`None`: no probes).
+    pub probes: Option<(u64, u64, u64, u64)>,
     /// The scene as stored, and where it was looked for.
     pub scene: String,
     pub scene_path: PathBuf,
@@ -388,6 +391,15 @@ pub fn describe(path: &Path) -> Result<FileSummary, LoadError> {
             .then(|| (b.sky.values.len() as u64, b.sky.to_bytes().len() as u64)),
         near_field_sky: (!b.near_field.sky.is_empty())
             .then(|| (b.near_field.sky.len() * 4 * crate::surface::SAMPLES_PER_PATCH) as u64),
+        probes: (!b.probes.is_empty()).then(|| {
+            let p = &b.probes;
+            (
+                p.len() as u64,
+                p.states.iter().filter(|s| s.is_used()).count() as u64,
+                (p.patches.len() + p.sky_cells.len() + p.emitters.len()) as u64,
+                p.to_bytes().len() as u64,
+            )
+        }),
         near_field_receiver: (!b.near_field.cast.is_empty()).then(|| {
             ((b.near_field.links.len() + b.near_field.cast.len())
                 * 2
@@ -463,6 +475,18 @@ impl std::fmt::Display for FileSummary {
             None => writeln!(
                 f,
                 "sky visibility: none (a sky lights nothing: bake again with ray form factors)"
+            )?,
+        }
+        match self.probes {
+            Some((probes, used, entries, bytes)) => writeln!(
+                f,
+                "irradiance probes: {probes} ({used} used, the others in solids), {entries} \
+                 entries, {bytes} bytes ({:.2} % of the file)",
+                100.0 * bytes as f64 / self.bytes_file.max(1) as f64
+            )?,
+            None => writeln!(
+                f,
+                "irradiance probes: none (moving objects get no indirect light: bake again)"
             )?,
         }
         if let Some(bytes) = self.near_field_receiver {

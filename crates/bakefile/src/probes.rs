@@ -440,10 +440,11 @@ impl Probes {
             || self.emission_entries.len() != self.emitters.len()
         {
             return invalid(format!(
-                "{} states, {} starts, {} sky starts for {p} probes",
+                "{} states, {} starts, {} sky starts, {} emission starts for {p} probes",
                 self.states.len(),
                 self.starts.len(),
-                self.sky_starts.len()
+                self.sky_starts.len(),
+                self.emission_starts.len()
             ));
         }
         let slack = 1.0 + 8.0 * f64::from(f32::EPSILON) * f64::from(self.rays);
@@ -468,18 +469,25 @@ impl Probes {
                 }
                 let mut total = 0.0;
                 for k in a..b {
-                    let (idx, ok) = if what == "patch" {
-                        let j = self.patches[k] as usize;
-                        (
-                            j,
-                            j < n && (k == a || self.patches[k - 1] < self.patches[k]),
-                        )
-                    } else {
-                        let c = usize::from(self.sky_cells[k]);
-                        (
-                            c,
-                            c < CELLS && (k == a || self.sky_cells[k - 1] < self.sky_cells[k]),
-                        )
+                    let (idx, ok) = match what {
+                        "patch" => {
+                            let j = self.patches[k] as usize;
+                            (
+                                j,
+                                j < n && (k == a || self.patches[k - 1] < self.patches[k]),
+                            )
+                        }
+                        "sky" => {
+                            let c = usize::from(self.sky_cells[k]);
+                            (
+                                c,
+                                c < CELLS && (k == a || self.sky_cells[k - 1] < self.sky_cells[k]),
+                            )
+                        }
+                        _ => {
+                            let q = self.emitters[k] as usize;
+                            (q, k == a || self.emitters[k - 1] < self.emitters[k])
+                        }
                     };
                     if !ok {
                         return invalid(format!(
@@ -615,6 +623,19 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("probe 0: patch 0"));
+        // Emission entries are checked as their own list (two in order,
+        // then out of order).
+        let mut two = s.clone();
+        two.emitters = vec![4, 9];
+        two.emission_entries = vec![[0.1, 0.0, 0.0, 0.0]; 2];
+        two.emission_starts = vec![0, 2, 2, 2];
+        two.check(3).unwrap();
+        two.emitters = vec![9, 4];
+        assert!(two
+            .check(3)
+            .unwrap_err()
+            .to_string()
+            .contains("emission 4 out of order"));
         let mut bad = s.clone();
         bad.entries[0][1] = 1.0;
         assert!(bad
