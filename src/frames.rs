@@ -269,6 +269,7 @@ pub(crate) fn load_bake(
 /// (`backend` "gl", or "auto" when a context can be made on a GPU, not a
 /// software rasterizer) or on the CPU.
 /// Returns the image and a one-line summary of what was done.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn draw_headless(
     rt: &mut radiosity::runtime::Runtime,
     config: &SceneConfig,

@@ -91,12 +91,13 @@
 //! irradiance `D` on patches (at their sample points) → the near-field
 //! correction `c` from `D` at close neighbours' points → `H = T̃ · (B0 + ρ
 //! ∘ c) + c` with `B0 = ρ ∘ D + E` straight from the compressed matrix →
-//! `H` at every pixel through the surface map → shading `L = ρ/π · (D + H)
-//! + Le`. Moving objects ([`core::objects`]) take `ρ/π · (D + E_probes)`,
-//! the probes updated from `B0 − E + ρ ∘ H` ([`runtime::probes`]) and
-//! looked up with a shadow ray to each so that no light leaks through a
-//! wall; they cast shadows in the shadow maps and leave the patches' light
-//! as it is.
+//! `H` at every pixel through the surface map → shading
+//! `L = ρ/π · (D + H) + Le`.
+//!
+//! Moving objects ([`core::objects`]) take `ρ/π · (D + E_probes)`, the
+//! probes updated from `B0 − E + ρ ∘ H` ([`runtime::probes`]) and looked up
+//! with a shadow ray to each so that no light leaks through a wall; they
+//! cast shadows in the shadow maps and leave the patches' light as it is.
 //!
 //! ## Invariants
 //! - Every OpenCL kernel (`crates/bake/kernels/*.cl`, embedded with `include_str!`) has a

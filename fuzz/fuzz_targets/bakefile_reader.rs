@@ -81,6 +81,28 @@ fn base() -> &'static [u8] {
                 64,
                 &[vec![(3, 0.5), (40, 0.25)], vec![], vec![(255, 0.1)]],
             ),
+            // Two probes, one with patch, sky and emission entries, so that
+            // the optional PROB section's reader is reached too.
+            probes: radiosity::bakefile::probes::Probes::from_entries(
+                64,
+                radiosity::bakefile::probes::ProbeGrid {
+                    dims: [2, 1, 1],
+                    origin: [0.0, 0.0, 0.5],
+                    spacing: 1.0,
+                },
+                &[
+                    radiosity::bakefile::probes::ProbeEntries {
+                        state: None,
+                        patches: vec![(0, [0.5, 0.0, 0.0, -0.9]), (2, [0.25, 0.6, 0.0, -0.6])],
+                        sky: vec![(7, [1.0, 0.0, 0.9, 0.0])],
+                        emission: vec![(0, [0.1, 0.0, 0.0, -0.5])],
+                    },
+                    radiosity::bakefile::probes::ProbeEntries {
+                        state: Some(radiosity::bakefile::probes::ProbeState::Solid),
+                        ..Default::default()
+                    },
+                ],
+            ),
             // A real encoding (BC1 + log + an RGB9E5 sparse part), so that the
             // codec sections' own validation is reached too.
             codec: {

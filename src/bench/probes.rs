@@ -199,10 +199,10 @@ pub fn run(
             for (a, n) in AXES.iter().enumerate() {
                 let (h, s) =
                     pt.indirect_and_sky(x, *n, &lights, options.paths, None, (6 * i + a) as u64);
-                for c in 0..3 {
-                    let d = h.mean[c] + s.mean[c] - means[6 * i + a][c];
+                for ((hm, sm), m) in h.mean.iter().zip(&s.mean).zip(&means[6 * i + a]) {
+                    let d = hm + sm - m;
                     num += d * d;
-                    den += means[6 * i + a][c].powi(2);
+                    den += m * m;
                 }
             }
         }
