@@ -233,16 +233,21 @@ pub(crate) fn bench_skips(options: bench::skips::SkipsOptions) -> anyhow::Result
     Ok(())
 }
 
+/// The camera and lights of the bake at `bake`: `given`, else its scene's
+/// `NAME.json` (made when missing).
+fn bake_camera_lights(
+    bake: &Path,
+    given: Option<PathBuf>,
+) -> anyhow::Result<radiosity::core::scene_config::SceneConfig> {
+    use radiosity::bakefile::baked::{resolve_scene_path, Baked};
+    let info = Baked::load(bake)?.info;
+    frames::camera_lights(given, &resolve_scene_path(bake, &info.scene), None)
+}
+
 /// `radiosity bench frame`.
 pub(crate) fn bench_frame(job: FrameJob) -> anyhow::Result<()> {
-    use radiosity::bakefile::baked::{resolve_scene_path, Baked};
     let bake = &job.bake;
-    let info = Baked::load(bake)?.info;
-    let config = frames::camera_lights(
-        job.camera_lights,
-        &resolve_scene_path(bake, &info.scene),
-        None,
-    )?;
+    let config = bake_camera_lights(bake, job.camera_lights)?;
     let report = bench::frame::run(bake, &config, &job.options)
         .with_context(|| format!("benchmarking frames of {}", bake.display()))?;
     print!("{report}");
@@ -251,14 +256,8 @@ pub(crate) fn bench_frame(job: FrameJob) -> anyhow::Result<()> {
 
 /// `radiosity bench probes`.
 pub(crate) fn bench_probes(job: crate::cli::ProbesJob) -> anyhow::Result<()> {
-    use radiosity::bakefile::baked::{resolve_scene_path, Baked};
     let bake = &job.bake;
-    let info = Baked::load(bake)?.info;
-    let config = frames::camera_lights(
-        job.camera_lights,
-        &resolve_scene_path(bake, &info.scene),
-        None,
-    )?;
+    let config = bake_camera_lights(bake, job.camera_lights)?;
     let (report, _) = bench::probes::run(bake, &config, &job.options)
         .with_context(|| format!("comparing the probes of {} with Mitsuba 3", bake.display()))?;
     print!("{report}");

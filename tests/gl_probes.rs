@@ -114,19 +114,7 @@ fn gl_probes_and_objects_match_the_cpu() {
     // its pixels in the indirect view (the probes' light only) lean to
     // that wall's colour, as the CPU lookup's do.
     let mesh = Mesh::load(&sphere_obj(obj.parent().unwrap())).unwrap();
-    let s = scene::load(&obj).unwrap();
-    let wall_x = |name: &str| {
-        let m = s.materials.iter().position(|m| m.name == name).unwrap() as u32;
-        let xs: Vec<f64> = s
-            .triangles
-            .iter()
-            .zip(&s.triangle_material)
-            .filter(|(_, &tm)| tm == m)
-            .flat_map(|(t, _)| t.iter().map(|&v| f64::from(s.positions[v as usize][0])))
-            .collect();
-        xs.iter().sum::<f64>() / xs.len() as f64
-    };
-    let (red, green) = (wall_x("red"), wall_x("green"));
+    let (red, green) = (common::wall_x(&obj, "red"), common::wall_x(&obj, "green"));
     let size = (160, 160);
     let place = |x: f64| Placement {
         mesh: "sphere.obj".into(),

@@ -23,7 +23,7 @@ use radiosity::reference::PathTracer;
 use radiosity::runtime::probes::{irradiance, Decoded, Sh};
 use radiosity::runtime::{Runtime, RuntimeOptions};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 const AXES: [[f64; 3]; 6] = [
     [1.0, 0.0, 0.0],
@@ -316,20 +316,6 @@ fn no_light_leaks_through_a_thin_wall() {
     }
 }
 
-/// The mean x of the triangles of material `name`.
-fn wall_x(obj: &Path, name: &str) -> f64 {
-    let s = scene::load(obj).unwrap();
-    let m = s.materials.iter().position(|m| m.name == name).unwrap() as u32;
-    let xs: Vec<f64> = s
-        .triangles
-        .iter()
-        .zip(&s.triangle_material)
-        .filter(|(_, &tm)| tm == m)
-        .flat_map(|(t, _)| t.iter().map(|&v| f64::from(s.positions[v as usize][0])))
-        .collect();
-    xs.iter().sum::<f64>() / xs.len() as f64
-}
-
 /// A sphere of radius 80 mm moved across the Cornell box at mid height
 /// picks up red beside the red wall and green beside the green one: the
 /// ratio of red to green irradiance on its side facing the nearer wall,
@@ -338,7 +324,7 @@ fn wall_x(obj: &Path, name: &str) -> f64 {
 fn a_sphere_takes_the_colour_of_the_wall_beside_it() {
     let (rt, _, obj) = cornell_runtime();
     let look = rt.probe_lookup().unwrap();
-    let (red, green) = (wall_x(&obj, "red"), wall_x(&obj, "green"));
+    let (red, green) = (common::wall_x(&obj, "red"), common::wall_x(&obj, "green"));
     let r = 80.0;
     let side = |cx: f64, towards: f64| -> [f64; 3] {
         // The hemisphere of the sphere facing the wall at x = towards.

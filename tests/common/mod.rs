@@ -258,3 +258,18 @@ pub fn floor_under_ceiling(tag: &str) -> PathBuf {
     );
     write_quads(tag, &[unit_floor(), ceiling])
 }
+
+/// The mean x of the vertices of the triangles of material `name` in the
+/// scene at `obj` (a wall's plane in the Cornell box).
+pub fn wall_x(obj: &Path, name: &str) -> f64 {
+    let s = radiosity::core::scene::load(obj).unwrap();
+    let m = s.materials.iter().position(|m| m.name == name).unwrap() as u32;
+    let xs: Vec<f64> = s
+        .triangles
+        .iter()
+        .zip(&s.triangle_material)
+        .filter(|(_, &tm)| tm == m)
+        .flat_map(|(t, _)| t.iter().map(|&v| f64::from(s.positions[v as usize][0])))
+        .collect();
+    xs.iter().sum::<f64>() / xs.len() as f64
+}

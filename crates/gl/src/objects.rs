@@ -217,16 +217,7 @@ impl GlObjects {
                 &vp.to_cols_array(),
             );
             gl.uniform_1_i32(loc("has_probes").as_ref(), probes.is_some() as i32);
-            gl.uniform_1_i32(
-                loc("view_mode").as_ref(),
-                match view {
-                    View::Final => 0,
-                    View::Direct => 1,
-                    View::Indirect => 2,
-                    View::Patches => 3,
-                    View::Weights => 4,
-                },
-            );
+            gl.uniform_1_i32(loc("view_mode").as_ref(), super::shade::view_mode(view));
             for k in 0..2 {
                 if self.vertices[k] > 0 && (k == 0 || probes.is_some()) {
                     gl.bind_vertex_array(Some(self.vao[k]));

@@ -106,6 +106,18 @@ pub fn camera_matrix(
     proj * view
 }
 
+/// The `view_mode` uniform of `view` (shade.frag and object.frag: 0 final,
+/// 1 direct, 2 indirect, 3 patches, 4 weights).
+pub fn view_mode(view: View) -> i32 {
+    match view {
+        View::Final => 0,
+        View::Direct => 1,
+        View::Indirect => 2,
+        View::Patches => 3,
+        View::Weights => 4,
+    }
+}
+
 impl Shade {
     pub fn new(gl: &glow::Context, defines: &[(&str, usize)]) -> Result<Shade, GlError> {
         let light = super::direct::LIGHT;
@@ -293,16 +305,7 @@ impl Shade {
                 loc("albedo_max").as_ref(),
                 radiosity_core::scene::ALBEDO_MAX,
             );
-            gl.uniform_1_i32(
-                loc("view_mode").as_ref(),
-                match view {
-                    View::Final => 0,
-                    View::Direct => 1,
-                    View::Indirect => 2,
-                    View::Patches => 3,
-                    View::Weights => 4,
-                },
-            );
+            gl.uniform_1_i32(loc("view_mode").as_ref(), view_mode(view));
             gl.uniform_1_i32(loc("albedo_texture").as_ref(), 0);
             gl.bind_sampler(0, (!self.mipmaps).then_some(self.bilinear));
             gl.bind_vertex_array(Some(scene.vao));
