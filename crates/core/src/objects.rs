@@ -9,60 +9,9 @@
 use crate::error::SceneError;
 use crate::math::{cross, normalize, sub};
 use crate::scene::Scene;
-use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// One object as the JSON places it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Placement {
-    /// The mesh file (OBJ or glTF), relative to the JSON file.
-    pub mesh: String,
-    /// Where the mesh's origin goes.
-    pub position: [f32; 3],
-    /// Uniform scale (> 0); 1 when absent.
-    #[serde(default = "one")]
-    pub scale: f32,
-    /// Rotations about x, then y, then z, in degrees; none when absent.
-    #[serde(default)]
-    pub rotation_deg: [f32; 3],
-    /// `mesh` resolved against the JSON file's directory when the file was
-    /// read (`scene_config::load`); not written back.
-    #[serde(skip)]
-    pub resolved: Option<std::path::PathBuf>,
-}
-
-fn one() -> f32 {
-    1.0
-}
-
-impl Placement {
-    /// The mesh file: resolved against the JSON file's directory, or as
-    /// written.
-    pub fn mesh_path(&self) -> std::path::PathBuf {
-        self.resolved
-            .clone()
-            .unwrap_or_else(|| std::path::PathBuf::from(&self.mesh))
-    }
-
-    /// The point `p` of the mesh in world space: scaled, rotated about x,
-    /// y then z, moved.
-    pub fn apply(&self, p: [f32; 3]) -> [f32; 3] {
-        let r = self.rotate(p.map(|v| v * self.scale));
-        std::array::from_fn(|a| r[a] + self.position[a])
-    }
-
-    /// The direction `d` turned as the mesh is (no scale, no move).
-    pub fn rotate(&self, d: [f32; 3]) -> [f32; 3] {
-        let [ax, ay, az] = self.rotation_deg.map(|a| a.to_radians());
-        let (s, c) = ax.sin_cos();
-        let d = [d[0], c * d[1] - s * d[2], s * d[1] + c * d[2]];
-        let (s, c) = ay.sin_cos();
-        let d = [c * d[0] + s * d[2], d[1], -s * d[0] + c * d[2]];
-        let (s, c) = az.sin_cos();
-        [c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]]
-    }
-}
+pub use crate::scene_config::Placement;
 
 /// Every object of `placements` loaded and placed (three vertices a
 /// triangle); an error names the mesh file.

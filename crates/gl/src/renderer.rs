@@ -460,9 +460,11 @@ impl GlRenderer {
             stats.views = self.shadow_maps(gl, lights)?;
         } else if self.objects_moved {
             // The same light, moved objects: their shadows drawn again.
-            let objects = (!self.objects.is_empty()).then_some(&self.objects);
+            let objects = &self.objects;
             self.shadows
-                .render(gl, &self.scene, &self.packed.views, objects)?;
+                .render(gl, &self.scene, &self.packed.views, || {
+                    objects.draw_depth(gl)
+                })?;
         }
         self.objects_moved = false;
         Ok(stats)
@@ -492,9 +494,11 @@ impl GlRenderer {
             glow::DYNAMIC_DRAW,
         );
         self.timers.begin(gl, Pass::Shadow);
-        let objects = (!self.objects.is_empty()).then_some(&self.objects);
+        let objects = &self.objects;
         self.shadows
-            .render(gl, &self.scene, &self.packed.views, objects)?;
+            .render(gl, &self.scene, &self.packed.views, || {
+                objects.draw_depth(gl)
+            })?;
         self.timers.end(gl);
         Ok(self.packed.views.len())
     }

@@ -169,13 +169,14 @@ impl ShadowMaps {
         }
     }
 
-    /// Renders `scene` into one layer per view.
+    /// Renders `scene` into one layer per view, and whatever `more` draws
+    /// with the depth program bound (the moving objects).
     pub fn render(
         &mut self,
         gl: &glow::Context,
         scene: &GlScene,
         views: &[ShadowView],
-        objects: Option<&super::objects::GlObjects>,
+        more: impl Fn(),
     ) -> Result<(), GlError> {
         if views.len() > self.layers {
             self.allocate(gl, views.len())?;
@@ -212,9 +213,7 @@ impl ShadowMaps {
                     &v.view_projection.to_cols_array(),
                 );
                 scene.draw_depth(gl);
-                if let Some(o) = objects {
-                    o.draw_depth(gl);
-                }
+                more();
             }
             gl.disable(glow::POLYGON_OFFSET_FILL);
             gl.bind_framebuffer(glow::FRAMEBUFFER, None);
