@@ -399,3 +399,34 @@ fn only_the_demanded_probes_follow_a_change() {
     rt.set_probe_demand(None);
     assert!(rt.probe_sh()[other][0][0] < all[other][0][0]);
 }
+
+/// A probe spacing that would make more probes than a bake takes is
+/// refused with the stage and the spacing named, before any probe is
+/// traced; a negative spacing is refused as an option.
+#[test]
+fn too_many_probes_or_a_bad_spacing_is_refused() {
+    let quads = common::box_inside([0.0; 3], [4.0, 2.0, 2.0], [0.7; 3]);
+    let obj = common::write_quads("probes-too-many", &quads);
+    let mut c = common::bake_config(&obj, Resolution::VoxelSize(0.5));
+    c.probes.spacing = ProbeSpacing::Voxels(0.01);
+    c.output = Some(obj.with_file_name("scene.rad"));
+    common::gpu();
+    let e = radiosity::bake::run(&c, &mut |_| {})
+        .err()
+        .expect("refused");
+    let m = e.to_string();
+    assert!(
+        m.contains("probes") && m.contains("more than 65536 probes"),
+        "{m}"
+    );
+    assert!(!obj.with_file_name("scene.rad").exists());
+    c.probes.spacing = ProbeSpacing::Voxels(-1.0);
+    let m = radiosity::bake::run(&c, &mut |_| {})
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        m.contains("probe spacing in voxels") && m.contains("-1"),
+        "{m}"
+    );
+}

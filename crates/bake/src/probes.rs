@@ -1,14 +1,14 @@
 //! Bake stage: irradiance probes (issue 46; the layout and the mathematics
 //! are `radiosity_bakefile::probes`'). A regular grid over the scene's
-//! bounds, `spacing` voxels apart and centred on them; from each probe a
-//! spherical Fibonacci set of directions (Keinert et al., "Spherical
-//! Fibonacci Mapping", 2015: equal areas, low discrepancy) is traced
-//! through the scene as the form factors trace theirs
-//! ([`crate::form_factor::rays`]): a ray that meets a patch's surface adds
-//! `(4/N) Y_lm(ω)` to that patch's weights, one that leaves the scene
-//! `(4π/N) Y_lm(ω)` to its sky cell's, one that meets the back of a
-//! surface counts towards the probe being in a solid; one that meets an
-//! emissive face also adds to its material's emission entry.
+//! bounds, centred on them ([`ProbeSpacing`]); from each probe a spherical
+//! Fibonacci set of directions (Keinert et al., "Spherical Fibonacci
+//! Mapping", 2015: equal areas, low discrepancy) is traced through the
+//! scene as the form factors trace theirs ([`crate::form_factor::rays`]).
+//! A ray that meets a patch's surface counts towards that patch's entry,
+//! one that leaves the scene towards its sky cell's, one that meets an
+//! emissive face also towards its material's; each entry keeps the rays'
+//! amount and mean direction. A ray that meets the back of a surface
+//! counts towards the probe being in a solid.
 
 use crate::error::BakeError;
 use crate::form_factor::rays::{with_tracer, Hit, Tracer};
@@ -31,14 +31,17 @@ pub const MIN_AUTO_SPACING_VOXELS: f64 = 2.0;
 /// of the file) and the update of every probe a fraction of the gather.
 pub const PATCHES_PER_PROBE: f64 = 8.0;
 
-/// Default rays per probe: the band-2 coefficients' Monte Carlo error on a
-/// spherical Fibonacci set is a few 0.1 % of the irradiance
-/// (`tests/probes.rs` measures it against 65,536 rays).
+/// Default rays per probe: with band 2's truncation, the probes'
+/// irradiance is within 1.8 % of 65,536 brute-force rays on the same
+/// radiance field (`tests/probes.rs`).
 pub const DEFAULT_RAYS: u32 = 1024;
 
-/// Most probes a bake makes: their entries are up to `rays` each, 40 bytes
-/// an entry, so 65,536 probes at 1,024 rays could ask for 2.7 GB.
+/// Most probes a bake makes.
 pub const MAX_PROBES: usize = 65_536;
+
+/// Bytes an entry takes while the bake holds it (the file's 20 and the
+/// list's own).
+const ENTRY_BYTES: u64 = 24;
 
 /// Most rays per probe.
 pub const MAX_RAYS: u32 = 65_536;
@@ -346,6 +349,22 @@ pub fn build(
     );
     let g = grid(scene, spacing)?;
     let rays = options.rays as usize;
+    // The most entries the probes can hold (a ray adds at most one entry
+    // to its patch, and one to its material), against the memory there is.
+    let most = g.len() as u64 * 2 * (rays as u64).min((patches + CELLS) as u64) * ENTRY_BYTES;
+    if let Some(free) = crate::budget::host_available() {
+        if most > free / 2 {
+            return Err(BakeError::TooLarge {
+                stage: "probes",
+                detail: format!(
+                    "{} probes of {rays} rays could hold {most} bytes of entries, more than half \
+                     the {free} bytes available; a larger probe spacing or fewer rays per probe \
+                     fits",
+                    g.len()
+                ),
+            });
+        }
+    }
     let dirs: Vec<[f64; 3]> = (0..rays).map(|k| fibonacci_direction(k, rays)).collect();
     let points: Vec<[f64; 3]> = (0..g.len()).map(|p| g.position(p)).collect();
     let chunk = (4 << 20) / rays.max(1);
