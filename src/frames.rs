@@ -386,6 +386,9 @@ pub(crate) fn draw_headless(
                 );
             }
             let albedo = Albedo::new(&rt.scene);
+            // The CPU image draws no moving object and no probe view: its
+            // frame updates no probe.
+            rt.set_probe_demand(Some(Vec::new()));
             let fs = rt.frame(&config.frame_lights(), &config.emission);
             let (img, rs) = render(rt, config, view, width, height, &albedo);
             let culled = if rt.options.cull > 0.0 {

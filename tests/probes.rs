@@ -17,6 +17,7 @@ use radiosity::bake::transfer_stages;
 use radiosity::bake::voxelize::Resolution;
 use radiosity::bakefile::baked::Baked;
 use radiosity::bakefile::probes::{ProbeState, Probes};
+use radiosity::bench::probes::AXES;
 use radiosity::core::scene;
 use radiosity::core::scene_config::{self, Light};
 use radiosity::reference::PathTracer;
@@ -24,15 +25,6 @@ use radiosity::runtime::probes::{irradiance, Decoded, Sh};
 use radiosity::runtime::{Runtime, RuntimeOptions};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-
-const AXES: [[f64; 3]; 6] = [
-    [1.0, 0.0, 0.0],
-    [-1.0, 0.0, 0.0],
-    [0.0, 1.0, 0.0],
-    [0.0, -1.0, 0.0],
-    [0.0, 0.0, 1.0],
-    [0.0, 0.0, -1.0],
-];
 
 /// Relative RMS of `a` against `b` over all channels: `√(Σ(a−b)²/Σb²)`.
 fn rel_rms(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {

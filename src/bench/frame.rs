@@ -421,14 +421,15 @@ pub fn run(
     writeln!(out, "|---|---|---|")?;
     writeln!(
         out,
-        "| frame, nothing reused | {:.2} ms | direct {:.2} ms ({} lights, {} samples per patch), near-field correction {:.3} ms ({} links), gathers {:.2} ms |",
+        "| frame, nothing reused | {:.2} ms | direct {:.2} ms ({} lights, {} samples per patch), near-field correction {:.3} ms ({} links), gathers {:.2} ms, every probe {:.3} ms |",
         1e3 * t_frame,
         1e3 * fs.seconds_direct,
         lights.len(),
         rt.options.samples,
         1e3 * fs.seconds_near_field,
         rt.near.links(),
-        1e3 * fs.seconds_gather
+        1e3 * fs.seconds_gather,
+        1e3 * fs.seconds_probes
     )?;
     if let (Some((without, t_cells)), Some(sky)) = (sky_cost, &config.sky) {
         writeln!(

@@ -19,7 +19,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::process::Command;
 
-const AXES: [[f64; 3]; 6] = [
+/// The six normals each probe is compared about: ±x, ±y, ±z.
+pub const AXES: [[f64; 3]; 6] = [
     [1.0, 0.0, 0.0],
     [-1.0, 0.0, 0.0],
     [0.0, 1.0, 0.0],

@@ -294,7 +294,9 @@ impl Runtime {
     /// Which probes a changed frame updates: `None` every probe (the
     /// default: the probe view, the GL comparison), `Some(list)` only
     /// those (the probes around the moving objects, which is all their
-    /// shading reads; `probes::Lookup::needed`). Probes newly demanded are
+    /// shading reads; `probes::Lookup::needed`), `Some(vec![])` none (an
+    /// application without moving objects: every probe costs 8–14 % of the
+    /// gather on Sponza at 4k, `bench frame`). Probes newly demanded are
     /// updated at once from the last frame's light.
     pub fn set_probe_demand(&mut self, demand: Option<Vec<usize>>) {
         let fresh: Vec<usize> = match (&demand, &self.probe_demand) {
