@@ -177,7 +177,8 @@ pub fn event_seconds(event: &Event) -> Result<f64, ClError> {
     Ok(end.saturating_sub(start) as f64 * 1e-9)
 }
 
-fn api(what: &str, e: impl std::fmt::Display) -> ClError {
+/// An OpenCL call's failure, naming what was being done.
+pub fn api(what: &str, e: impl std::fmt::Display) -> ClError {
     ClError::Api {
         what: what.to_string(),
         code: e.to_string(),

@@ -36,6 +36,7 @@ pub mod reorder;
 pub mod report;
 pub mod solve;
 pub mod surface_map;
+pub mod trace;
 pub mod transfer;
 pub mod voxelize;
 pub mod winding;
@@ -178,8 +179,13 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> Result<BakeOu
             n,
             config.near_field_rays,
             config.near_field_min_form_factor,
+            &backend,
+            config.form_factor.ray_device,
         )
     })?;
+    if let Some(stage) = stages.last_mut() {
+        stage.device = rays_device(&backend, config.form_factor.ray_device);
+    }
 
     let (probes, probe_stats) = if config.probes.enabled() {
         progress(&format!(
@@ -291,6 +297,19 @@ fn timed_stage<T>(
         device: report::host_threads(),
     });
     out
+}
+
+/// Where a stage casting rays from the real surfaces runs: the device's
+/// traversal with the host drawing and classifying the rays, or the host.
+fn rays_device(backend: &Backend, choice: form_factor::RayDevice) -> String {
+    match form_factor::rays::ray_gpu(backend, choice) {
+        Some(_) => format!(
+            "{} (traversal) and {}",
+            backend.device_name(),
+            report::host_threads()
+        ),
+        None => report::host_threads(),
+    }
 }
 
 /// What bake steps 1–4 leave: the scene, its voxel patches, the form
@@ -431,9 +450,10 @@ pub fn transfer_stages(
     stages.push(StageTime {
         stage: "form factors",
         seconds: t.elapsed().as_secs_f64(),
-        // The rays method traces on the host (issue 41 moves it).
         device: match config.form_factor.method {
-            form_factor::FormFactorMethod::Rays => report::host_threads(),
+            form_factor::FormFactorMethod::Rays => {
+                rays_device(backend, config.form_factor.ray_device)
+            }
             form_factor::FormFactorMethod::Contour => backend.device_name(),
         },
     });

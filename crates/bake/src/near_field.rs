@@ -30,8 +30,11 @@
 //! rays instead of 4,096 moved the red channel's `H` error by about a
 //! percent (`docs/accuracy.md`).
 
+use super::compute::Backend;
 use super::error::BakeError;
-use super::form_factor::rays::{cosine_direction, with_tracer, Hit, Origins};
+use super::form_factor::batches::{trace_rows, Ray};
+use super::form_factor::rays::{cosine_direction, device_tracer, with_tracer, Hit, Origins};
+use super::form_factor::RayDevice;
 use super::pieces;
 use super::voxelize::Voxelization;
 use radiosity_bakefile::near_field::{face_coords, receiver_cell, NearField, NearLink};
@@ -53,10 +56,6 @@ const SHARE_POINTS: usize = 1024;
 
 /// Most rays per patch: the counts are `u16`.
 pub const MAX_RAYS: u32 = 65_535;
-
-/// Receivers traced together before their dropped links are folded into
-/// the far weights (memory: see `build`).
-const RECEIVERS_PER_CHUNK: usize = 512;
 
 /// What the stage did, for the bake report.
 #[derive(Clone, Debug, Default, Serialize)]
@@ -94,7 +93,9 @@ pub fn check_options(rays: u32, min_form_factor: f64) -> Result<(), BakeError> {
 /// The correction for the `n` patches in matrix order (`patch_index_of`:
 /// voxelization patch → matrix patch), whose sample points are `samples`
 /// (matrix order); `rays` per patch (0: none), links with a measured form
-/// factor of at least `min_form_factor` stored.
+/// factor of at least `min_form_factor` stored. The rays are traced on
+/// `backend`'s device as `ray_device` says (the form factors' rule,
+/// [`crate::form_factor::rays::form_factors`]): the same links either way.
 pub fn build(
     scene: &Scene,
     vox: &Voxelization,
@@ -103,6 +104,8 @@ pub fn build(
     n: usize,
     rays: u32,
     min_form_factor: f64,
+    backend: &Backend,
+    ray_device: RayDevice,
 ) -> Result<(NearField, NearFieldStats), BakeError> {
     let start = Instant::now();
     if rays == 0 || n == 0 {
@@ -168,27 +171,44 @@ pub fn build(
                 Vec<(u32, [u16; SAMPLES_PER_PATCH])>,
                 [[u32; SAMPLES_PER_PATCH]; 3],
             );
-            let row_of = |i: usize| -> Row {
+            // A receiver's rays (None: it casts none), and how many of its
+            // origins were covered.
+            let draw = |i: usize, out: &mut Vec<Ray>| -> Option<u32> {
                 let v = vox_of[i];
                 if v == usize::MAX {
-                    return Row::default();
+                    return None;
                 }
                 let origins = Origins::of_patch(v, &by_patch[v], geo, vox, 0x5851_f42d_4c95_7f2d);
                 if origins.is_empty() {
-                    return Row::default();
+                    return None;
                 }
-                // Per neighbour: its rays by the neighbour's cell they meet, and
-                // by the receiver's cell they leave.
-                type Counts = ([u32; SAMPLES_PER_PATCH], [u32; SAMPLES_PER_PATCH]);
-                let mut links: BTreeMap<u32, Counts> = BTreeMap::new();
                 let (mut f, mut covered) = (0usize, 0u32);
-                let mut open = [[0u32; SAMPLES_PER_PATCH]; 3];
                 for k in 0..rays as usize {
                     let (x, nrm, partial, r) = origins.point(k, rays as usize, &mut f);
                     if partial.is_some_and(|tri| tracer.cover.covered(x, nrm, tri)) {
                         covered += 1;
                         continue;
                     }
+                    out.push(Ray {
+                        x,
+                        n: nrm,
+                        d: cosine_direction(nrm, r[2], r[3]),
+                    });
+                }
+                Some(covered)
+            };
+            let row_of = |i: usize, covered: Option<u32>, drawn: &[Ray], hits: &[Hit]| -> Row {
+                let Some(covered) = covered else {
+                    return Row::default();
+                };
+                let v = vox_of[i];
+                // Per neighbour: its rays by the neighbour's cell they meet, and
+                // by the receiver's cell they leave.
+                type Counts = ([u32; SAMPLES_PER_PATCH], [u32; SAMPLES_PER_PATCH]);
+                let mut links: BTreeMap<u32, Counts> = BTreeMap::new();
+                let mut open = [[0u32; SAMPLES_PER_PATCH]; 3];
+                for (ray, hit) in drawn.iter().zip(hits) {
+                    let x = ray.x;
                     let own = nearest(i, x);
                     open[0][own] += 1;
                     // The receiver's face cell (the bakefile's "At the
@@ -199,7 +219,7 @@ pub fn build(
                     let (fu, fv) = face_coords(g, patch.voxel, patch.direction.axis());
                     let face = receiver_cell(fu, fv);
                     open[2][face] += 1;
-                    let (patch, y) = match tracer.trace(x, nrm, cosine_direction(nrm, r[2], r[3])) {
+                    let (patch, y) = match *hit {
                         Hit::Owned { patch, y, .. } => (patch, y),
                         Hit::Escaped => {
                             open[1][own] += 1;
@@ -253,19 +273,23 @@ pub fn build(
                 }
                 row
             };
-            // Receivers in chunks, so that the dropped links' counts (up to one
+            // Receivers in chunks (`trace_rows` hands them over a chunk at a
+            // time), so that the dropped links' counts (up to one
             // list entry per neighbour a receiver's rays meet: thousands at large
             // patch counts) are folded into the far sums and freed as they come.
             let mut stored: Vec<Vec<NearLink>> = Vec::with_capacity(n);
             let mut far_sum = vec![[0.0f64; SAMPLES_PER_PATCH]; n];
             let mut sky: Vec<[f32; SAMPLES_PER_PATCH]> = Vec::with_capacity(n);
             let mut cast_of: Vec<[u16; SAMPLES_PER_PATCH]> = Vec::with_capacity(n);
-            for first in (0..n).step_by(RECEIVERS_PER_CHUNK) {
-                let chunk: Vec<Row> = (first..(first + RECEIVERS_PER_CHUNK).min(n))
-                    .into_par_iter()
-                    .map(row_of)
-                    .collect();
-                for (links, per_ray, dropped, [cast, open, face]) in chunk {
+            let (mut device, _) = device_tracer(backend, tracer.rays, ray_device)?;
+            trace_rows(
+                tracer,
+                device.as_mut(),
+                n,
+                rays as usize,
+                draw,
+                row_of,
+                &mut |_, (links, per_ray, dropped, [cast, open, face]): Row| {
                     sky.push(open_fractions(&cast, &open));
                     cast_of.push(face.map(|v| v as u16));
                     for (j, c) in dropped {
@@ -274,10 +298,11 @@ pub fn build(
                         }
                     }
                     stored.push(links);
-                }
-            }
-            (shares, stored, far_sum, sky, cast_of)
-        });
+                },
+                &mut |_, _| {},
+            )?;
+            Ok::<_, BakeError>((shares, stored, far_sum, sky, cast_of))
+        })?;
 
     // Far weights: the dropped rays per neighbour cell, normalised; a patch
     // none of them meets takes its area shares.

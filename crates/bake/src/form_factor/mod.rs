@@ -24,6 +24,7 @@ use serde::Serialize;
 use std::fmt;
 use std::path::Path;
 
+pub(crate) mod batches;
 mod contour;
 mod cpu;
 pub mod rays;
@@ -68,6 +69,38 @@ impl FormFactorMethod {
     }
 }
 
+/// Where the rays method traces its rays (`crate::trace`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub enum RayDevice {
+    /// On the OpenCL device when it is not a CPU (a CPU device is the
+    /// cores the native traversal runs on faster), else on the CPU.
+    #[default]
+    Auto,
+    /// On the OpenCL device whatever it is (the tests' PoCL).
+    Device,
+    /// On the CPU.
+    Cpu,
+}
+
+impl RayDevice {
+    pub fn name(self) -> &'static str {
+        match self {
+            RayDevice::Auto => "auto",
+            RayDevice::Device => "device",
+            RayDevice::Cpu => "cpu",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<RayDevice> {
+        match s {
+            "auto" => Some(RayDevice::Auto),
+            "device" => Some(RayDevice::Device),
+            "cpu" => Some(RayDevice::Cpu),
+            _ => None,
+        }
+    }
+}
+
 /// Most rays per patch of the rays method.
 pub const MAX_RAYS_PER_PATCH: u32 = 1 << 20;
 
@@ -95,6 +128,8 @@ pub struct FormFactorOptions {
     /// Use occlusion certificates to skip blocked pairs (default true; off
     /// only to measure what they save: results are the same).
     pub certificates: bool,
+    /// Where the rays method (and the near field) trace their rays.
+    pub ray_device: RayDevice,
 }
 
 impl Default for FormFactorOptions {
@@ -107,6 +142,7 @@ impl Default for FormFactorOptions {
             quadrature_tol: 1e-3,
             batch_seconds: 0.5,
             certificates: true,
+            ray_device: RayDevice::Auto,
         }
     }
 }
@@ -352,7 +388,7 @@ pub fn of_voxelization(
 ) -> Result<FormFactors, BakeError> {
     options.validate()?;
     match options.method {
-        FormFactorMethod::Rays => rays::form_factors(scene, vox, options, progress),
+        FormFactorMethod::Rays => rays::form_factors(scene, vox, options, backend, progress),
         FormFactorMethod::Contour => {
             form_factors(scene, &vox.patches, &vox.grid, options, backend, progress)
         }

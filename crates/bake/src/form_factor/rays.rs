@@ -40,9 +40,12 @@
 //! stay the contour-integral method's (`--form-factors contour`), which is
 //! exact for planar squares.
 
-use super::{FormFactorOptions, FormFactorStats, FormFactors, ROW_SUM_TOL};
+use super::batches::{trace_rows, Ray};
+use super::{FormFactorOptions, FormFactorStats, FormFactors, RayDevice, ROW_SUM_TOL};
+use crate::compute::Backend;
 use crate::error::BakeError;
 use crate::pieces::{self, PieceGeo, PieceLookup, CUT_INSET};
+use crate::trace::{DeviceTracer, BATCH_RAYS};
 use crate::voxelize::{Cover, Voxelization};
 use radiosity_core::bvh::Bvh;
 use radiosity_core::bvh4::Bvh4;
@@ -110,11 +113,14 @@ impl RowCounts {
 }
 
 /// The form factors of `vox`'s patches by rays from their pieces (module
-/// doc). `progress(done, total)` counts emitter patches.
+/// doc), traced on `backend`'s device where it can ([`device_tracer`]),
+/// else on the CPU: the same counts either way. `progress(done, total)`
+/// counts emitter patches.
 pub fn form_factors(
     scene: &Scene,
     vox: &Voxelization,
     options: &FormFactorOptions,
+    backend: &Backend,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<FormFactors, BakeError> {
     let start = Instant::now();
@@ -123,34 +129,39 @@ pub fn form_factors(
     let mut counts = vec![0.0f32; n * n];
     let pairs_start = Instant::now();
     let mut rows: Vec<RowCounts> = Vec::with_capacity(n);
-    let bvh_stats = with_tracer(scene, vox, |tracer, geo, by_patch| {
-        // Rows in chunks, so that progress can be reported.
-        let chunk = 256usize;
-        for (ci, block) in counts.chunks_mut((chunk * n).max(1)).enumerate() {
-            let r: Vec<RowCounts> = block
-                .par_chunks_mut(n)
-                .enumerate()
-                .map(|(k, row)| {
-                    let i = ci * chunk + k;
-                    emit(i, &by_patch[i], geo, tracer, rays, row)
-                })
-                .collect();
-            rows.extend(r);
-            progress(rows.len() as u64, n as u64);
-        }
-        tracer.rays.bvh.stats.clone()
-    });
+    let (bvh_stats, backend_name, seconds_kernels) =
+        with_tracer(scene, vox, |tracer, geo, by_patch| {
+            let (mut device, name) = device_tracer(backend, tracer.rays, options.ray_device)?;
+            trace_rows(
+                tracer,
+                device.as_mut(),
+                n,
+                rays,
+                |i, out| draw(i, &by_patch[i], geo, tracer, rays, out),
+                |_, covered, drawn, hits| count(covered, drawn, hits),
+                &mut |i, (c, owned): (RowCounts, Vec<(u32, u32)>)| {
+                    for (j, k) in owned {
+                        counts[i * n + j as usize] = k as f32;
+                    }
+                    rows.push(c);
+                },
+                progress,
+            )?;
+            let kernels = device.map_or(0.0, |d| d.seconds_kernels);
+            Ok::<_, BakeError>((tracer.rays.bvh.stats.clone(), name, kernels))
+        })?;
     let seconds_pairs = pairs_start.elapsed().as_secs_f64();
     let post = Instant::now();
     let areas: Vec<f64> = vox.patches.iter().map(|p| p.area).collect();
     let mut stats = FormFactorStats {
-        backend: "rays from the real surfaces (CPU, f64)".into(),
+        backend: backend_name,
         options: Some(options.clone()),
         patches: n as u64,
         pairs_total: (n as u64) * (n as u64).saturating_sub(1) / 2,
         rays_cast: (n * rays) as u64,
         bvh: bvh_stats,
         seconds_pairs,
+        seconds_kernels,
         ..Default::default()
     };
     for r in &rows {
@@ -218,49 +229,128 @@ pub fn form_factors(
     Ok(out)
 }
 
-/// The rays of emitter `i` (module doc) into its row of counts.
-#[allow(clippy::too_many_arguments)]
-fn emit(
+/// Draws emitter `i`'s rays (module doc) into `out`; returns how many
+/// origins fell on covered parts of pieces and were not cast.
+fn draw(
     i: usize,
     pieces: &[usize],
     geo: &[PieceGeo],
     tracer: &Tracer,
     rays: usize,
-    row: &mut [f32],
-) -> RowCounts {
-    let mut c = RowCounts::default();
-    let mut sky = [0u32; CELLS];
+    out: &mut Vec<Ray>,
+) -> u64 {
     let origins = Origins::of_patch(i, pieces, geo, tracer.vox, 0x9e37_79b9_7f4a_7c15);
     if origins.is_empty() {
-        return c;
+        return 0;
     }
-    let mut f = 0usize;
+    let (mut f, mut covered) = (0usize, 0u64);
     for k in 0..rays {
         let (x, n, partial, r) = origins.point(k, rays, &mut f);
         if partial.is_some_and(|tri| tracer.cover.covered(x, n, tri)) {
-            c.covered += 1;
+            covered += 1;
             continue;
         }
-        let d = cosine_direction(n, r[2], r[3]);
-        match tracer.trace(x, n, d) {
+        out.push(Ray {
+            x,
+            n,
+            d: cosine_direction(n, r[2], r[3]),
+        });
+    }
+    covered
+}
+
+/// An emitter's counts from its rays' hits: the totals by kind, and the
+/// rays each owning patch received, `(patch, rays)` by increasing patch.
+fn count(covered: u64, rays: &[Ray], hits: &[Hit]) -> (RowCounts, Vec<(u32, u32)>) {
+    let mut c = RowCounts {
+        covered,
+        ..Default::default()
+    };
+    let mut sky = [0u32; CELLS];
+    let mut owned: Vec<u32> = Vec::with_capacity(hits.len());
+    for (ray, hit) in rays.iter().zip(hits) {
+        match hit {
             Hit::Escaped => {
                 c.escaped += 1;
                 // The rays that leave the scene are the sky's.
-                sky[cell(d)] += 1;
+                sky[cell(ray.d)] += 1;
             }
             Hit::Back => c.back += 1,
             Hit::Unowned { .. } => c.unowned += 1,
-            Hit::Owned { patch, .. } => {
-                row[patch as usize] += 1.0;
-                c.owned += 1;
-            }
+            Hit::Owned { patch, .. } => owned.push(*patch),
         }
     }
+    c.owned = owned.len() as u64;
     c.sky = (0..CELLS)
         .filter(|&k| sky[k] > 0)
         .map(|k| (k as u8, sky[k]))
         .collect();
-    c
+    owned.sort_unstable();
+    let mut runs: Vec<(u32, u32)> = Vec::new();
+    for p in owned {
+        match runs.last_mut() {
+            Some((q, k)) if *q == p => *k += 1,
+            _ => runs.push((p, 1)),
+        }
+    }
+    (c, runs)
+}
+
+/// The device the rays are traced on by `choice` ([`RayDevice`]), when
+/// `backend` has one and it can (it has `cl_khr_fp64`); `None`: the CPU.
+pub fn ray_gpu<'g>(backend: &Backend<'g>, choice: RayDevice) -> Option<&'g crate::compute::Gpu> {
+    let Backend::OpenCl(g) = backend else {
+        return None;
+    };
+    let info = g.info();
+    let wanted = match choice {
+        RayDevice::Cpu => false,
+        RayDevice::Device => true,
+        // A CPU device is the same cores the native traversal (AVX) uses
+        // faster: `bench form-factors` measures both.
+        RayDevice::Auto => info.kind != "CPU",
+    };
+    (wanted && info.fp64).then_some(*g)
+}
+
+/// Where the rays are traced: on `backend`'s device through
+/// [`crate::trace::DeviceTracer`] when `choice` allows it and the device
+/// can (it has `cl_khr_fp64`), else on the CPU; and the stage's backend
+/// as the report names it.
+pub(crate) fn device_tracer<'g>(
+    backend: &Backend<'g>,
+    rs: &RayScene,
+    choice: RayDevice,
+) -> Result<(Option<DeviceTracer<'g>>, String), BakeError> {
+    const CPU: &str = "rays from the real surfaces (CPU, f64)";
+    let gpu = match backend {
+        Backend::OpenCl(g) => *g,
+        Backend::Cpu => return Ok((None, CPU.into())),
+    };
+    let info = gpu.info();
+    if ray_gpu(backend, choice).is_none() {
+        return Ok((
+            None,
+            format!(
+                "{CPU}; the OpenCL device {} left to the other stages",
+                info.name
+            ),
+        ));
+    }
+    if !info.fp64 {
+        return Ok((
+            None,
+            format!("{CPU}: the OpenCL device {} lacks cl_khr_fp64", info.name),
+        ));
+    }
+    let tracer = DeviceTracer::new(gpu, &rs.bvh, &rs.bvh4, BATCH_RAYS)?;
+    Ok((
+        Some(tracer),
+        format!(
+            "rays from the real surfaces (OpenCL traversal on {} ({}, {}), f64)",
+            info.name, info.kind, info.platform
+        ),
+    ))
 }
 
 /// What a ray from a patch's real surface meets ([`Tracer::trace`]).
@@ -285,7 +375,7 @@ pub(crate) struct RayScene {
     pub bvh: Bvh,
     /// Its four-wide view, which the rays traverse ([`Bvh4::closest_hit`]:
     /// the binary traversal's nearest hit, four boxes per test).
-    bvh4: Bvh4,
+    pub bvh4: Bvh4,
     normals: Vec<[f64; 3]>,
     lookup: PieceLookup,
     shift: [f64; 3],
@@ -330,9 +420,31 @@ pub(crate) struct Tracer<'a> {
 impl Tracer<'_> {
     /// The ray from `x` (world, on a surface of normal `n`) along `d`.
     pub(crate) fn trace(&self, x: [f64; 3], n: [f64; 3], d: [f64; 3]) -> Hit {
+        let (o, seg) = self.segment(x, n);
         let rs = self.rays;
-        let o = sub(add(x, scale(n, rs.offset)), rs.shift);
-        let Some((mut leaf, tp)) = rs.bvh4.closest_hit(&rs.bvh, o, scale(d, rs.far)) else {
+        self.resolve(o, d, rs.bvh4.closest_hit(&rs.bvh, o, scale(d, rs.far)), seg)
+    }
+
+    /// Where the ray from `x` (on a surface of normal `n`) starts in the
+    /// BVH's shifted frame, lifted off the surface, and the rays' length:
+    /// the segment is `o + t · far · d`, `t ∈ (0, 1]`.
+    pub(crate) fn segment(&self, x: [f64; 3], n: [f64; 3]) -> ([f64; 3], f64) {
+        let rs = self.rays;
+        (sub(add(x, scale(n, rs.offset)), rs.shift), rs.far)
+    }
+
+    /// What the segment from `o` (shifted frame, [`Tracer::segment`]) along
+    /// `d`, of length `far`, meets, given its nearest hit `(leaf, t)` (the
+    /// CPU's [`Bvh4::closest_hit`] or the device's, `crate::trace`).
+    pub(crate) fn resolve(
+        &self,
+        o: [f64; 3],
+        d: [f64; 3],
+        hit: Option<(u32, f64)>,
+        far: f64,
+    ) -> Hit {
+        let rs = self.rays;
+        let Some((mut leaf, tp)) = hit else {
             return Hit::Escaped;
         };
         if dot(geo_normal(&rs.bvh, leaf), d) >= 0.0 {
@@ -340,13 +452,13 @@ impl Tracer<'_> {
             // (a two-sided surface modelled as two triangles, or
             // `Scene::with_back_sides`): then that front face is what the
             // ray meets (the cover rule's).
-            match self.cover.front_at(o, d, tp * rs.far, u32::MAX) {
+            match self.cover.front_at(o, d, tp * far, u32::MAX) {
                 Some(front) => leaf = front,
                 None => return Hit::Back,
             }
         }
         let tri = rs.bvh.order[leaf as usize] as usize;
-        let y = add(add(o, scale(d, tp * rs.far)), rs.shift);
+        let y = add(add(o, scale(d, tp * far)), rs.shift);
         // The part of a cut piece is the one on the side the ray came from
         // when it lands within CUT_INSET voxels of the cut: a ray can slip
         // through the f32 rounding at the foot of the wall that cut it.
