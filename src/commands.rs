@@ -281,17 +281,12 @@ pub(crate) fn bench_voxelize(
 pub(crate) fn bench_form_factors(
     scene: &Path,
     patches: &[usize],
+    options: &FormFactorOptions,
     cpu_reference: bool,
     selection: DeviceSelection,
 ) -> anyhow::Result<()> {
-    let table = bench::form_factor::run(
-        scene,
-        patches,
-        &FormFactorOptions::default(),
-        selection,
-        cpu_reference,
-    )
-    .with_context(|| format!("benchmarking form factors of {}", scene.display()))?;
+    let table = bench::form_factor::run(scene, patches, options, selection, cpu_reference)
+        .with_context(|| format!("benchmarking form factors of {}", scene.display()))?;
     print!("{table}");
     Ok(())
 }

@@ -52,9 +52,10 @@ fn run(job: Job) -> anyhow::Result<()> {
         Job::FormFactors {
             scene,
             patches,
+            options,
             cpu_reference,
             selection,
-        } => c::bench_form_factors(&scene, &patches, cpu_reference, selection),
+        } => c::bench_form_factors(&scene, &patches, &options, cpu_reference, selection),
         Job::Solve {
             scene,
             patches,

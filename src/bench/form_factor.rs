@@ -1,7 +1,13 @@
 //! `radiosity bench form-factors`: form factors on OpenCL and on the CPU
-//! reference at several patch counts, in the same run.
+//! reference at several patch counts, in the same run. The rays method
+//! (the bake's default) times the device's traversal (`kernels/trace.cl`)
+//! against the CPU's native one on the same rays and checks that they
+//! give the same matrix; the contour method times its kernel against its
+//! f64 reference.
 
-use crate::bake::form_factor::{compare, form_factors, FormFactorOptions};
+use crate::bake::form_factor::{
+    compare, form_factors, of_voxelization, FormFactorMethod, FormFactorOptions, RayDevice,
+};
 use crate::core::compute::{Backend, Gpu};
 use std::path::Path;
 
@@ -17,9 +23,105 @@ pub fn run(
     cpu_reference: bool,
 ) -> anyhow::Result<String> {
     use anyhow::Context as _;
-    use std::fmt::Write as _;
     let scene = crate::core::scene::load(scene_path)?;
     let gpu = Gpu::new(selection).context("opening the OpenCL device")?;
+    match options.method {
+        FormFactorMethod::Rays => rays(scene_path, &scene, &gpu, targets, options, cpu_reference),
+        FormFactorMethod::Contour => {
+            contour(scene_path, &scene, &gpu, targets, options, cpu_reference)
+        }
+    }
+}
+
+/// The rays method's table (module doc): per target patch count, the
+/// rays traced on the device and on the CPU, their times and rays per
+/// second, and how many entries differ (0: the kernel's hits are the
+/// CPU's bit for bit).
+fn rays(
+    scene_path: &Path,
+    scene: &crate::core::scene::Scene,
+    gpu: &Gpu,
+    targets: &[usize],
+    options: &FormFactorOptions,
+    cpu_reference: bool,
+) -> anyhow::Result<String> {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    writeln!(
+        out,
+        "rays form factors of {} ({} triangles), {} rays per patch: traversal on {} ({}, {}) against the CPU's (rayon on {} threads, AVX); the host draws and classifies the rays in both",
+        scene_path.display(),
+        scene.triangles.len(),
+        options.rays_per_patch,
+        gpu.info().name,
+        gpu.info().kind,
+        gpu.info().platform,
+        rayon::current_num_threads()
+    )?;
+    writeln!(
+        out,
+        "| patches | kept | rays cast | device (s) | of which kernels (s) | device rays/s | CPU (s) | CPU rays/s | device / CPU time | entries differing |"
+    )?;
+    writeln!(out, "|---|---|---|---|---|---|---|---|---|---|")?;
+    for &target in targets {
+        let vox = crate::bake::voxelize::voxelize(
+            scene,
+            crate::bake::voxelize::Resolution::Patches(target),
+            &Backend::OpenCl(gpu),
+        )?;
+        let on = |backend: &Backend, ray_device| {
+            let o = FormFactorOptions {
+                ray_device,
+                ..options.clone()
+            };
+            of_voxelization(scene, &vox, &o, backend, &mut |_, _| {})
+        };
+        let dev = on(&Backend::OpenCl(gpu), RayDevice::Device)?;
+        let s = &dev.stats;
+        let cpu_cells = if cpu_reference {
+            let cpu = on(&Backend::Cpu, RayDevice::Cpu)?;
+            let differ = dev
+                .f
+                .iter()
+                .zip(&cpu.f)
+                .filter(|(a, b)| a.to_bits() != b.to_bits())
+                .count()
+                + dev.f.len().abs_diff(cpu.f.len());
+            format!(
+                "{:.2} | {:.3e} | {:.2} | {}",
+                cpu.stats.seconds_pairs,
+                cpu.stats.rays_per_second,
+                s.seconds_pairs / cpu.stats.seconds_pairs.max(1e-9),
+                differ
+            )
+        } else {
+            "- | - | - | -".to_string()
+        };
+        writeln!(
+            out,
+            "| {} | {} | {} | {:.2} | {:.2} | {:.3e} | {} |",
+            s.patches,
+            s.kept,
+            s.rays_cast,
+            s.seconds_pairs,
+            s.seconds_kernels,
+            s.rays_per_second,
+            cpu_cells
+        )?;
+    }
+    Ok(out)
+}
+
+/// The contour method's table: the kernel against its f64 reference.
+fn contour(
+    scene_path: &Path,
+    scene: &crate::core::scene::Scene,
+    gpu: &Gpu,
+    targets: &[usize],
+    options: &FormFactorOptions,
+    cpu_reference: bool,
+) -> anyhow::Result<String> {
+    use std::fmt::Write as _;
     let mut out = String::new();
     writeln!(
         out,
@@ -43,22 +145,22 @@ pub fn run(
     )?;
     for &target in targets {
         let vox = crate::bake::voxelize::voxelize(
-            &scene,
+            scene,
             crate::bake::voxelize::Resolution::Patches(target),
-            &Backend::OpenCl(&gpu),
+            &Backend::OpenCl(gpu),
         )?;
         let cl = form_factors(
-            &scene,
+            scene,
             &vox.patches,
             &vox.grid,
             options,
-            &Backend::OpenCl(&gpu),
+            &Backend::OpenCl(gpu),
             &mut |_, _| {},
         )?;
         let s = &cl.stats;
         let (cpu_cells, diff_cells) = if cpu_reference {
             let cpu = form_factors(
-                &scene,
+                scene,
                 &vox.patches,
                 &vox.grid,
                 options,

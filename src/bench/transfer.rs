@@ -195,11 +195,33 @@ pub fn bench_gemm(sizes: &[usize], repeat: usize, backend: &Backend) -> Result<S
         )),
         rayon::current_num_threads()
     );
+    // The device's own FMA peak, measured in this run (`bake::peak`).
+    let peak = match gpu {
+        Some(g) => {
+            let iterations = if g.info().kind == "GPU" {
+                16_384
+            } else {
+                1 << 20
+            };
+            let p = crate::bake::peak::measure(g, iterations, 5)?;
+            let _ = writeln!(
+                out,
+                "Measured f32 FMA peak of the device: {:.1} GFLOP/s ({} work-items × {} chains of float{} × {} FMAs, best of 5).\n",
+                p.gflops,
+                p.work_items,
+                crate::bake::peak::CHAINS,
+                p.vector_width,
+                p.iterations
+            );
+            Some(p.gflops)
+        }
+        None => None,
+    };
     let _ = writeln!(
         out,
-        "| n | OpenCL configuration | padded | OpenCL GFLOP/s | faer f32 GFLOP/s | OpenCL / faer | OpenCL rel. error vs f64 |"
+        "| n | OpenCL configuration | padded | OpenCL GFLOP/s | of the measured peak | faer f32 GFLOP/s | OpenCL / faer | OpenCL rel. error vs f64 |"
     );
-    let _ = writeln!(out, "|---|---|---|---|---|---|---|");
+    let _ = writeln!(out, "|---|---|---|---|---|---|---|---|");
     for &n in sizes {
         let mut rng = crate::core::math::SplitMix64::new(0x5eed_0000 + n as u64);
         let a: Vec<f32> = (0..n * n).map(|_| rng.uniform() as f32).collect();
@@ -238,18 +260,19 @@ pub fn bench_gemm(sizes: &[usize], repeat: usize, backend: &Backend) -> Result<S
             Some((g, _, _, dc)) => {
                 let c = g.download("C", &dc)?;
                 let err = relative_frobenius(&c, &reference_product(&a, &b, None, n));
+                let gflops = flop / t_cl * 1e-9;
                 let _ = writeln!(
                     out,
-                    "| {n} | {} | {} | {:.1} | {:.1} | {:.2} | {err:.1e} |",
+                    "| {n} | {} | {} | {gflops:.1} | {:.1} % | {:.1} | {:.2} | {err:.1e} |",
                     g.config(),
                     g.padded(n),
-                    flop / t_cl * 1e-9,
+                    100.0 * gflops / peak.unwrap_or(f64::NAN),
                     flop / t_faer * 1e-9,
                     t_faer / t_cl
                 );
             }
             None => {
-                let _ = writeln!(out, "| {n} | | | | {:.1} | | |", flop / t_faer * 1e-9);
+                let _ = writeln!(out, "| {n} | | | | | {:.1} | | |", flop / t_faer * 1e-9);
             }
         }
     }

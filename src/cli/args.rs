@@ -220,13 +220,23 @@ pub(crate) enum BenchCommand {
         #[command(flatten)]
         device: DeviceArgs,
     },
-    /// Form factors: OpenCL and the CPU reference at several patch counts.
+    /// Form factors: OpenCL and the CPU reference at several patch counts
+    /// (rays: the device's traversal against the CPU's, which must agree
+    /// exactly; contour: the kernel against its f64 reference).
     FormFactors {
         /// The scene file.
         scene: PathBuf,
         /// Comma-separated target patch counts.
         #[arg(long, value_delimiter = ',', required = true)]
         patches: Vec<usize>,
+        /// The method benchmarked: rays (the bake's default) or contour.
+        #[arg(long, default_value = "rays",
+              value_parser = |s: &str| radiosity::bake::form_factor::FormFactorMethod::parse(s)
+                  .ok_or_else(|| format!("unknown form-factor method {s:?}: expected rays or contour")))]
+        method: radiosity::bake::form_factor::FormFactorMethod,
+        /// Rays per patch of the rays method.
+        #[arg(long, default_value_t = 16384)]
+        rays_per_patch: u32,
         /// Skip the (slow) CPU reference.
         #[arg(long)]
         no_cpu_reference: bool,

@@ -62,6 +62,7 @@ pub(crate) enum Job {
     FormFactors {
         scene: PathBuf,
         patches: Vec<usize>,
+        options: radiosity::bake::form_factor::FormFactorOptions,
         cpu_reference: bool,
         selection: DeviceSelection,
     },
@@ -302,11 +303,22 @@ fn bench_job(which: BenchCommand) -> anyhow::Result<Job> {
         BenchCommand::FormFactors {
             scene,
             patches,
+            method,
+            rays_per_patch,
             no_cpu_reference,
             device,
         } => Job::FormFactors {
             scene,
             patches,
+            options: {
+                let options = radiosity::bake::form_factor::FormFactorOptions {
+                    method,
+                    rays_per_patch,
+                    ..Default::default()
+                };
+                options.validate()?;
+                options
+            },
             cpu_reference: !no_cpu_reference,
             selection: selection(device)?,
         },

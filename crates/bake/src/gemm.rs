@@ -251,7 +251,7 @@ impl std::fmt::Display for GemmConfig {
 /// The device's native float vector width, read from the device behind
 /// the queue (the one device query [`crate::compute::DeviceInfo`] does not
 /// carry).
-fn native_float_width(gpu: &Gpu) -> u32 {
+pub(crate) fn native_float_width(gpu: &Gpu) -> u32 {
     gpu.queue()
         .device()
         .ok()

@@ -29,6 +29,7 @@ pub mod form_factor;
 pub mod gemm;
 pub mod mesh_map;
 pub mod near_field;
+pub mod peak;
 pub mod pieces;
 pub mod preview;
 pub mod probes;
