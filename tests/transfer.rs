@@ -51,6 +51,7 @@ fn gpu_form() -> GemmConfig {
         local: [16, 16],
         layout: Layout::ATransposed,
         unroll: 8,
+        kb: 64,
     }
 }
 
@@ -73,7 +74,21 @@ fn gemm_matches_faer_within_the_blocked_summation_bound() {
     let exact = gemm::reference_product(&a, &b, Some(&d), n);
     let exact_no_d = gemm::reference_product(&a, &b, None, n);
     let native = Gemm::new(&gpu, n).unwrap();
-    for g in [native, Gemm::with_config(&gpu, gpu_form()).unwrap()] {
+    // The wide GPU forms (128 × 128 tiles, K sub-blocks of 16 and 32) and
+    // the same tile with K blocks of the whole tile: their products must
+    // agree bit for bit (the kernel's "K sub-blocks").
+    let wide: Vec<GemmConfig> = GemmConfig::gpu_wide()
+        .into_iter()
+        .chain([GemmConfig {
+            kb: 128,
+            ..GemmConfig::gpu_wide()[0]
+        }])
+        .collect();
+    let mut wide_products: Vec<(String, Vec<f32>)> = Vec::new();
+    let forms = [native, Gemm::with_config(&gpu, gpu_form()).unwrap()]
+        .into_iter()
+        .chain(wide.iter().map(|&c| Gemm::with_config(&gpu, c).unwrap()));
+    for g in forms {
         let tile = g.config().tile;
         let padded = g.padded(n);
         // Blocked summation: each entry is a sum of at most tile products
@@ -107,6 +122,9 @@ fn gemm_matches_faer_within_the_blocked_summation_bound() {
                 gemm::relative_frobenius(&c, reference)
             );
             assert!(worst <= 1.0, "{}: error {worst} × the bound", g.config());
+            if with_d && wide.contains(g.config()) {
+                wide_products.push((g.config().to_string(), c));
+            }
         }
         // The tile flags of an upload match the CPU reference.
         let mut sparse = vec![0.0f32; n * n];
@@ -117,6 +135,16 @@ fn gemm_matches_faer_within_the_blocked_summation_bound() {
             g.tile_flags(&ds).unwrap(),
             gemm::tile_flags_cpu(&sparse, n, tile)
         );
+    }
+    assert_eq!(wide_products.len(), wide.len());
+    let (first, reference) = &wide_products[0];
+    for (name, c) in &wide_products[1..] {
+        let differ = c
+            .iter()
+            .zip(reference)
+            .filter(|(x, y)| x.to_bits() != y.to_bits())
+            .count();
+        assert_eq!(differ, 0, "{name} against {first}: {differ} entries differ");
     }
 }
 
@@ -217,6 +245,7 @@ fn zero_tiles_are_skipped_exactly() {
     let config = Gemm::device_config(&gpu, 512);
     let config = GemmConfig {
         tile: config.tile.min(128),
+        kb: config.kb.min(128),
         ..config
     };
     let rooms = synthetic::rooms(&[config.tile; 4], 31);

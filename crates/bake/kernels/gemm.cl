@@ -62,8 +62,21 @@
 //
 // Compile-time parameters (-D, chosen by the host from the device's limits,
 // `gemm::GemmConfig`): TS, MR, NR, VW (4, 8 or 16), LX, LY (local size),
-// LAYOUT (below), KU (unroll factor of the K loop). The host checks that TS
-// is a multiple of 4, of MR * LY and of NR * LX, and NR a multiple of VW.
+// LAYOUT (below), KU (unroll factor of the K loop), KB (the K sub-block
+// held in local memory). The host checks that TS is a multiple of 4, of
+// MR * LY and of NR * LX, NR a multiple of VW, and KB a multiple of 4
+// dividing TS; KB < TS only where a work-item owns one micro-tile (RM = RN
+// = 1, the GPU forms).
+//
+// K sub-blocks (KB < TS): a GPU's local memory (48 KiB a work-group on
+// NVIDIA's OpenCL) cannot hold two 128 x 128 blocks, and a 128 x 128 tile
+// with 8 x 8 outputs per work-item is what reaches a useful share of a
+// large GPU's FMA rate (Volkov & Demmel; CLBlast's tuned NVIDIA
+// configurations). The A and B blocks of one TS block of K are then
+// copied KB columns (rows) at a time; the accumulators still run over the
+// whole TS block before joining the running totals, so every output is
+// summed in the same order as with KB = TS, bit for bit, whatever KB and
+// the micro-tile are (tests/transfer.rs checks it).
 
 #define CAT(a, b) a##b
 #define XCAT(a, b) CAT(a, b)
@@ -72,8 +85,8 @@
 #define vstoreV XCAT(vstore, VW)
 #define intV XCAT(int, VW)
 
-// Copy width: float16 where the tile allows (CPUs), float4 otherwise.
-#if TS % 16 == 0 && LAYOUT != 1
+// Copy width: float16 where the block allows (CPUs), float4 otherwise.
+#if KB % 16 == 0 && LAYOUT != 1
 #define CW 16
 #else
 #define CW 4
@@ -100,7 +113,7 @@
 #if LAYOUT == 1
 #define A_AT(row, k) ((k) * TS + (row))
 #else
-#define A_AT(row, k) ((row) * TS + (k))
+#define A_AT(row, k) ((row) * KB + (k))
 #endif
 #define B_AT(k, col) ((k) * TS + (col))
 
@@ -125,8 +138,8 @@ void gemm(__global const float *restrict a,
           const uint kt,
           const float alpha)
 {
-    __local float as[TS * TS];
-    __local float bs[TS * TS];
+    __local float as[TS * KB];
+    __local float bs[KB * TS];
     __local float red_ratio[WG];
     __local int red_nonzero[WG];
 
@@ -152,6 +165,7 @@ void gemm(__global const float *restrict a,
         // a branch, even a uniform one.
         const bool skip = use_flags && (flags_a[bi * nt + kb] == 0 || flags_b[kb * nt + bj] == 0);
         blocks += skip ? 0 : 1;
+#if KB == TS
         // The previous block's readers are done before the tiles change.
         barrier(CLK_LOCAL_MEM_FENCE);
         // Copy the blocks in vectors of CW floats.
@@ -196,6 +210,61 @@ void gemm(__global const float *restrict a,
                     for (uint v = 0; v < NV; v++) tot[i][j][r][v] += acc[r][v];
             }
         }
+#else
+        // One micro-tile per work-item (RM = RN = 1): its accumulators run
+        // over the KB-wide sub-blocks of this TS block of K.
+        const uint row0 = ly * MR, col0 = lx * NR;
+        floatV acc[MR][NV];
+#pragma unroll
+        for (uint r = 0; r < MR; r++)
+#pragma unroll
+            for (uint v = 0; v < NV; v++) acc[r][v] = (floatV)(0.0f);
+        for (uint kk = 0; kk < TS; kk += KB) {
+            // The previous sub-block's readers are done.
+            barrier(CLK_LOCAL_MEM_FENCE);
+            if (!skip) {
+                // A: TS rows of KB; B: KB rows of TS; in vectors of CW.
+                for (uint e = lid; e < TS * KB / CW; e += WG) {
+                    const uint row = e / (KB / CW), col = (e % (KB / CW)) * CW;
+                    const floatC va =
+                        vloadC(0, a + a_off + (size_t)(bi * TS + row) * lda + kb * TS + kk + col);
+#if LAYOUT == 1
+                    float vs[CW];
+                    vstoreC(va, 0, vs);
+                    for (uint l = 0; l < CW; l++) as[A_AT(row, col + l)] = vs[l];
+#else
+                    vstoreC(va, 0, as + A_AT(row, col));
+#endif
+                }
+                for (uint e = lid; e < KB * TS / CW; e += WG) {
+                    const uint row = e / (TS / CW), col = (e % (TS / CW)) * CW;
+                    vstoreC(vloadC(0, b + b_off + (size_t)(kb * TS + kk + row) * ldb + bj * TS + col), 0,
+                            bs + B_AT(row, col));
+                }
+            }
+            barrier(CLK_LOCAL_MEM_FENCE);
+            if (!skip) {
+#pragma unroll KU
+                for (uint k = 0; k < KB; k++) {
+                    floatV bv[NV];
+#pragma unroll
+                    for (uint v = 0; v < NV; v++) bv[v] = vloadV(0, bs + B_AT(k, col0 + v * VW));
+#pragma unroll
+                    for (uint r = 0; r < MR; r++) {
+                        const floatV av = (floatV)(as[A_AT(row0 + r, k)]);
+#pragma unroll
+                        for (uint v = 0; v < NV; v++) acc[r][v] = fma(av, bv[v], acc[r][v]);
+                    }
+                }
+            }
+        }
+        if (!skip) {
+#pragma unroll
+            for (uint r = 0; r < MR; r++)
+#pragma unroll
+                for (uint v = 0; v < NV; v++) tot[0][0][r][v] += acc[r][v];
+        }
+#endif
     }
 
     // Epilogue: C = D + T (or T), and the tile's statistics.

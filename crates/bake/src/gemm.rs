@@ -74,6 +74,10 @@ pub struct GemmConfig {
     pub layout: Layout,
     /// Unroll factor of the K loop (`KU`).
     pub unroll: usize,
+    /// The K sub-block held in local memory (`KB`): the tile, or on the
+    /// GPU forms with one micro-tile per work-item, a divisor of it (the
+    /// results are the same bit for bit; `kernels/gemm.cl`).
+    pub kb: usize,
 }
 
 impl GemmConfig {
@@ -85,23 +89,24 @@ impl GemmConfig {
     /// AVX2).
     pub fn for_device(info: &DeviceInfo, native_float_width: u32, n: usize) -> GemmConfig {
         if info.kind == "GPU" {
-            // 16 × 16 work-items of 4 × 4 outputs on a 64 × 64 tile; 8 × 8 of
-            // 4 × 4 on 32 × 32; 4 × 4 of 4 × 4 on 16 × 16.
-            for (tile, l) in [(64, 16), (32, 8), (16, 4)] {
-                let c = GemmConfig {
-                    tile,
-                    mr: 4,
-                    nr: 4,
-                    vector: 4,
-                    local: [l, l],
-                    layout: Layout::ATransposed,
-                    unroll: 8,
-                };
-                if c.fits(info) {
-                    return c;
-                }
-            }
-            return GemmConfig::minimal();
+            // The wide form first (module doc), then 16 × 16 work-items of
+            // 4 × 4 outputs on a 64 × 64 tile; 8 × 8 of 4 × 4 on 32 × 32;
+            // 4 × 4 of 4 × 4 on 16 × 16.
+            let narrow = [(64, 16), (32, 8), (16, 4)].map(|(tile, l)| GemmConfig {
+                tile,
+                mr: 4,
+                nr: 4,
+                vector: 4,
+                local: [l, l],
+                layout: Layout::ATransposed,
+                unroll: 8,
+                kb: tile,
+            });
+            return GemmConfig::gpu_wide()
+                .into_iter()
+                .chain(narrow)
+                .find(|c| c.fits(info))
+                .unwrap_or_else(GemmConfig::minimal);
         }
         let vector = match native_float_width {
             w if w >= 16 => 16,
@@ -134,6 +139,7 @@ impl GemmConfig {
                 local: [1, 1],
                 layout: Layout::RowMajor,
                 unroll: 4,
+                kb: tile,
             })
             .filter(|c| c.fits(info))
             .collect();
@@ -160,13 +166,41 @@ impl GemmConfig {
             local: [1, 1],
             layout: Layout::RowMajor,
             unroll: 1,
+            kb: 4,
         }
     }
 
-    /// Local memory the kernel declares: two `tile × tile` blocks plus the
-    /// epilogue's reduction arrays.
+    /// The GPU forms on 128 × 128 tiles (module doc), fastest first on
+    /// paper: 16 × 16 work-items of 8 × 8 outputs with K sub-blocks of 16
+    /// (CLBlast's tuned NVIDIA shape) or 32, and 16 × 32 work-items of
+    /// 4 × 8. They share the tile, so they give the same bits and
+    /// [`Gemm::new`] may pick among them by time.
+    pub fn gpu_wide() -> [GemmConfig; 3] {
+        let base = GemmConfig {
+            tile: 128,
+            mr: 8,
+            nr: 8,
+            vector: 4,
+            local: [16, 16],
+            layout: Layout::ATransposed,
+            unroll: 8,
+            kb: 16,
+        };
+        [
+            base,
+            GemmConfig { kb: 32, ..base },
+            GemmConfig {
+                mr: 4,
+                local: [16, 32],
+                ..base
+            },
+        ]
+    }
+
+    /// Local memory the kernel declares: the `tile × kb` A block and `kb ×
+    /// tile` B block plus the epilogue's reduction arrays.
     pub fn local_bytes(&self) -> u64 {
-        (2 * self.tile * self.tile * 4 + self.work_items() * 8) as u64
+        (2 * self.tile * self.kb * 4 + self.work_items() * 8) as u64
     }
 
     pub fn work_items(&self) -> usize {
@@ -189,13 +223,19 @@ impl GemmConfig {
             && self.nr.is_multiple_of(self.vector)
             && self.tile.is_multiple_of(4)
             && self.tile.is_multiple_of(self.mr * ly)
-            && self.tile.is_multiple_of(self.nr * lx);
+            && self.tile.is_multiple_of(self.nr * lx)
+            && self.kb.is_multiple_of(4)
+            && self.kb > 0
+            && self.tile.is_multiple_of(self.kb)
+            && (self.kb == self.tile || (self.tile == self.mr * ly && self.tile == self.nr * lx));
         if !ok {
             return Err(BakeError::Mismatch {
                 stage: "transfer",
                 detail: format!(
                     "invalid GEMM configuration {self:?}: the tile must be a multiple of 4, of \
-                 MR × LY and of NR × LX, and NR a multiple of the vector width (4, 8 or 16)"
+                 MR × LY and of NR × LX, NR a multiple of the vector width (4, 8 or 16), and \
+                 KB a multiple of 4 dividing the tile, below it only with one micro-tile per \
+                 work-item"
                 ),
             });
         }
@@ -218,7 +258,7 @@ impl GemmConfig {
 
     fn build_options(&self) -> String {
         format!(
-            "-DTS={} -DMR={} -DNR={} -DVW={} -DLX={} -DLY={} -DLAYOUT={} -DKU={}",
+            "-DTS={} -DMR={} -DNR={} -DVW={} -DLX={} -DLY={} -DLAYOUT={} -DKU={} -DKB={}",
             self.tile,
             self.mr,
             self.nr,
@@ -226,7 +266,8 @@ impl GemmConfig {
             self.local[0],
             self.local[1],
             self.layout as u8,
-            self.unroll
+            self.unroll,
+            self.kb
         )
     }
 }
@@ -235,13 +276,14 @@ impl std::fmt::Display for GemmConfig {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "tile {t}×{t}, local {}×{}, {}×{} per work-item as float{}, A {:?} in local memory, K unrolled ×{}",
+            "tile {t}×{t}, local {}×{}, {}×{} per work-item as float{}, A {:?} in local memory in K blocks of {}, K unrolled ×{}",
             self.local[0],
             self.local[1],
             self.mr,
             self.nr,
             self.vector,
             self.layout,
+            self.kb,
             self.unroll,
             t = self.tile
         )
@@ -308,28 +350,90 @@ impl<'g> Gemm<'g> {
     }
 
     /// Builds the kernels with the device's configuration for `n × n`
-    /// matrices.
-    /// On a GPU whose compiled kernel allows fewer work-items than the
-    /// configuration needs, the smaller GPU forms are tried in turn.
+    /// matrices. On a GPU: the fastest of the wide forms that build
+    /// ([`GemmConfig::gpu_wide`], timed once per device and process: they
+    /// give the same bits, so the choice changes no result), else the
+    /// narrow forms in turn, largest first.
     pub fn new(gpu: &'g Gpu, n: usize) -> Result<Self, BakeError> {
         let config = Self::device_config(gpu, n);
-        let first = Self::with_config(gpu, config);
-        if first.is_ok() || config.layout != Layout::ATransposed {
-            return first;
+        if config.layout != Layout::ATransposed {
+            return Self::with_config(gpu, config);
         }
-        for (tile, l) in [(32, 8), (16, 4)] {
-            if tile < config.tile {
-                let smaller = GemmConfig {
-                    tile,
-                    local: [l, l],
-                    ..config
-                };
-                if let Ok(g) = Self::with_config(gpu, smaller) {
-                    return Ok(g);
-                }
+        if config.tile == 128 {
+            if let Some(g) = Self::fastest_wide(gpu)? {
+                return Ok(g);
             }
         }
-        first
+        let mut last = None;
+        for (tile, l) in [(64, 16), (32, 8), (16, 4)] {
+            if tile > config.tile {
+                continue;
+            }
+            let narrow = GemmConfig {
+                tile,
+                mr: 4,
+                nr: 4,
+                local: [l, l],
+                kb: tile,
+                ..config
+            };
+            match Self::with_config(gpu, narrow) {
+                Ok(g) => return Ok(g),
+                Err(e) => last = Some(e),
+            }
+        }
+        Err(last.unwrap_or_else(|| BakeError::Mismatch {
+            stage: "transfer",
+            detail: format!("no GEMM configuration fits the device {}", gpu.info().name),
+        }))
+    }
+
+    /// The fastest wide form on `gpu` (best device time of three 1024 ×
+    /// 1024 products each), or `None` when none builds. The choice is kept
+    /// per device for the process.
+    fn fastest_wide(gpu: &'g Gpu) -> Result<Option<Self>, BakeError> {
+        use std::sync::Mutex;
+        static CHOSEN: Mutex<Vec<(usize, Option<GemmConfig>)>> = Mutex::new(Vec::new());
+        let index = gpu.info().index;
+        let known = CHOSEN
+            .lock()
+            .ok()
+            .and_then(|c| c.iter().find(|(i, _)| *i == index).map(|(_, c)| *c));
+        if let Some(choice) = known {
+            return Ok(choice.and_then(|c| Self::with_config(gpu, c).ok()));
+        }
+        let built: Vec<Self> = GemmConfig::gpu_wide()
+            .into_iter()
+            .filter(|c| c.fits(gpu.info()))
+            .filter_map(|c| Self::with_config(gpu, c).ok())
+            .collect();
+        let mut best: Option<(f64, Self)> = None;
+        let timed = built.len() > 1;
+        for g in built {
+            let seconds = if timed { g.trial()? } else { 0.0 };
+            if best.as_ref().is_none_or(|(t, _)| seconds < *t) {
+                best = Some((seconds, g));
+            }
+        }
+        if let Ok(mut c) = CHOSEN.lock() {
+            c.push((index, best.as_ref().map(|(_, g)| g.config)));
+        }
+        Ok(best.map(|(_, g)| g))
+    }
+
+    /// Best device seconds of three dense 1024 × 1024 products.
+    fn trial(&self) -> Result<f64, BakeError> {
+        let n = 1024;
+        let m: Vec<f32> = (0..n * n)
+            .map(|k| ((k * 7919) % 1009) as f32 / 1009.0)
+            .collect();
+        let (a, _) = self.upload("GEMM trial A", n, &m)?;
+        let mut c = self.alloc("GEMM trial C", n)?;
+        let mut best = f64::INFINITY;
+        for _ in 0..3 {
+            best = best.min(self.multiply(&a, &a, None, &mut c, false)?.seconds);
+        }
+        Ok(best)
     }
 
     /// Builds the kernels with an explicit configuration (tests use this
