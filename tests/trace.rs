@@ -235,6 +235,7 @@ fn form_factors_and_near_field_on_the_device_equal_the_cpus() {
                 near_field::MIN_FORM_FACTOR,
                 backend,
                 RayDevice::Device,
+                &mut |_, _| {},
             )
             .expect("near field")
             .0

@@ -14,7 +14,11 @@
 //!   during the LU solve its host copy of `I − diag(ρ) F` (`4n²`): `32n²`;
 //! - on the OpenCL device, the transfer's padded matrices: two for the LU
 //!   solve, three for doubling (five with Horner steps); on a CPU device
-//!   (PoCL) these live in the same RAM and are added to the host's share;
+//!   (PoCL) these live in the same RAM and are added to the host's share.
+//!   Each is one buffer, so it must also fit the device's single-allocation
+//!   limit (`CL_DEVICE_MAX_MEM_ALLOC_SIZE`, a quarter of the memory on
+//!   many drivers); the ray kernel's BVH and batch (`crate::trace`, tens
+//!   of MB) are freed before the transfer starts (`docs/memory.md`);
 //! - the CPU f64 reference: faer's f64 matrices (`M`, its LU, `F` and `T`,
 //!   `32n²`) on top of the above;
 //! - inspection exports: the decoded matrix and its reordered copy
@@ -35,6 +39,10 @@ const HOST_PER_ENTRY: u64 = 32;
 const CPU_REFERENCE_PER_ENTRY: u64 = 32;
 /// Extra host bytes per `n²` of the inspection exports.
 const EXPORT_PER_ENTRY: u64 = 24;
+/// Rows and columns a device matrix is padded to a multiple of: the
+/// largest GEMM tile ([`crate::gemm::GemmConfig`]).
+const PAD: u64 = 256;
+
 /// The largest `n` whose `n²` fits the codec's 32-bit entry indices.
 pub const MAX_PATCHES_FORMAT: usize = 65_535;
 
@@ -81,8 +89,21 @@ pub fn largest_fitting(host: u64, device: Device, export: bool) -> usize {
         if per.device > 0 && info.kind != "CPU" {
             n = n.min(((info.global_mem_bytes / per.device) as f64).sqrt() as usize);
         }
+        n = n.min(largest_single(info));
     }
     n.min(MAX_PATCHES_FORMAT)
+}
+
+/// The largest `n` whose padded `n × n` f32 matrix fits one device buffer.
+fn largest_single(info: &DeviceInfo) -> usize {
+    let side = ((info.max_mem_alloc_bytes / 4) as f64).sqrt() as u64;
+    (side / PAD * PAD) as usize
+}
+
+/// Bytes of one padded `n × n` f32 device matrix.
+fn matrix_bytes(n: usize) -> u64 {
+    let p = (n as u64).div_ceil(PAD) * PAD;
+    4 * p * p
 }
 
 /// The host memory available for new allocations: `MemAvailable` of
@@ -136,7 +157,21 @@ pub fn check(
             });
         }
     }
-    if let Device::OpenCl { info, .. } = device {
+    if let Device::OpenCl { info, matrices } = device {
+        if matrices > 0 && matrix_bytes(n) > info.max_mem_alloc_bytes {
+            return Err(BakeError::TooLarge {
+                stage: STAGE,
+                detail: format!(
+                    "{what} is {n}: one transfer matrix of {n} × {n} takes {} on the OpenCL \
+                     device {}, whose largest buffer (CL_DEVICE_MAX_MEM_ALLOC_SIZE) is {}; at \
+                     most about {} patches fit",
+                    gb(matrix_bytes(n)),
+                    info.name,
+                    gb(info.max_mem_alloc_bytes),
+                    largest_single(info).min(MAX_PATCHES_FORMAT)
+                ),
+            });
+        }
         if info.kind != "CPU" && need.device > info.global_mem_bytes {
             return Err(BakeError::TooLarge {
                 stage: STAGE,
@@ -152,4 +187,65 @@ pub fn check(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gpu(global: u64, single: u64) -> DeviceInfo {
+        DeviceInfo {
+            index: 0,
+            platform: "test".into(),
+            name: "a GPU".into(),
+            vendor: "test".into(),
+            kind: "GPU".into(),
+            version: "OpenCL 3.0".into(),
+            opencl_c_version: "OpenCL C 1.2".into(),
+            driver_version: "1".into(),
+            compute_units: 1,
+            max_work_group_size: 1024,
+            max_mem_alloc_bytes: single,
+            global_mem_bytes: global,
+            local_mem_bytes: 48 << 10,
+            fp64: true,
+        }
+    }
+
+    /// A transfer matrix larger than the device's largest buffer is
+    /// refused before the bake, naming the limit and the largest count
+    /// that fits; that count passes.
+    #[test]
+    fn one_matrix_must_fit_the_single_allocation_limit() {
+        let info = gpu(100_000_000_000, 1_000_000_000);
+        let device = Device::OpenCl {
+            info: &info,
+            matrices: 2,
+        };
+        let e = check(20_000, "the requested patch count", None, device, false)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("CL_DEVICE_MAX_MEM_ALLOC_SIZE"), "{e}");
+        // 1e9 / 4 floats: a side of 15,811, whole tiles of 256: 15,616.
+        assert!(e.contains("at most about 15616 patches"), "{e}");
+        assert!(check(15_616, "n", None, device, false).is_ok());
+        assert!(check(15_617, "n", None, device, false).is_err());
+        assert_eq!(largest_fitting(u64::MAX, device, false), 15_616);
+    }
+
+    /// The H200 of issue 41 (141 GB, a quarter of it in one buffer) fits
+    /// Sponza at 32,000 patches with the LU solve's two matrices, and the
+    /// host's 128 GB do too.
+    #[test]
+    fn thirty_two_thousand_patches_fit_an_h200() {
+        let info = gpu(150_000_000_000, 37_500_000_000);
+        let device = Device::OpenCl {
+            info: &info,
+            matrices: 2,
+        };
+        assert!(check(32_000, "n", Some(128_000_000_000), device, false).is_ok());
+        let need = needs(32_000, device, false);
+        assert_eq!(need.device, 8 * 32_000 * 32_000);
+        assert_eq!(need.host, 32 * 32_000 * 32_000);
+    }
 }

@@ -171,8 +171,9 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> Result<BakeOu
         "near-field correction ({} rays per patch)",
         config.near_field_rays
     ));
-    let (near_field, near_field_stats) = timed_stage(&mut stages, "near field", false, || {
-        near_field::build(
+    let (near_field, near_field_stats) = timed_stage(&mut stages, "near field", true, || {
+        let pb = bar("near field");
+        let out = near_field::build(
             &scene,
             &vox,
             &patch_index_of,
@@ -182,7 +183,13 @@ pub fn run(config: &BakeConfig, progress: &mut dyn FnMut(&str)) -> Result<BakeOu
             config.near_field_min_form_factor,
             &backend,
             config.form_factor.ray_device,
-        )
+            &mut |done, total| {
+                pb.set_length(total);
+                pb.set_position(done);
+            },
+        );
+        pb.finish_and_clear();
+        out
     })?;
     if let Some(stage) = stages.last_mut() {
         stage.device = rays_device(&backend, config.form_factor.ray_device);

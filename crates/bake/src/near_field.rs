@@ -96,6 +96,7 @@ pub fn check_options(rays: u32, min_form_factor: f64) -> Result<(), BakeError> {
 /// factor of at least `min_form_factor` stored. The rays are traced on
 /// `backend`'s device as `ray_device` says (the form factors' rule,
 /// [`crate::form_factor::rays::form_factors`]): the same links either way.
+/// `progress(done, total)` counts receivers.
 pub fn build(
     scene: &Scene,
     vox: &Voxelization,
@@ -106,6 +107,7 @@ pub fn build(
     min_form_factor: f64,
     backend: &Backend,
     ray_device: RayDevice,
+    progress: &mut dyn FnMut(u64, u64),
 ) -> Result<(NearField, NearFieldStats), BakeError> {
     let start = Instant::now();
     if rays == 0 || n == 0 {
@@ -299,7 +301,7 @@ pub fn build(
                     }
                     stored.push(links);
                 },
-                &mut |_, _| {},
+                progress,
             )?;
             Ok::<_, BakeError>((shares, stored, far_sum, sky, cast_of))
         })?;
