@@ -97,6 +97,9 @@ pub fn check_options(rays: u32, min_form_factor: f64) -> Result<(), BakeError> {
 /// `backend`'s device as `ray_device` says (the form factors' rule,
 /// [`crate::form_factor::rays::form_factors`]): the same links either way.
 /// `progress(done, total)` counts receivers.
+// The inputs are separate products of earlier stages and the bake's
+// options; a struct bundling them would exist for this call alone.
+#[allow(clippy::too_many_arguments)]
 pub fn build(
     scene: &Scene,
     vox: &Voxelization,

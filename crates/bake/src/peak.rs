@@ -5,7 +5,7 @@
 //! multiply-adds; the rate is `2 · CHAINS · VW · iterations · work-items`
 //! over the kernel's device time, best of a few launches.
 //!
-//! [`reference`] computes one work-item's output on the CPU in the
+//! [`reference()`] computes one work-item's output on the CPU in the
 //! kernel's order; `tests/transfer.rs` compares every work-item bit for bit
 //! (fma is exactly rounded in OpenCL and in Rust's `mul_add`).
 
