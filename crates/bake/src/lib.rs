@@ -310,7 +310,7 @@ fn timed_stage<T>(
 /// Where a stage casting rays from the real surfaces runs: the device's
 /// traversal with the host drawing and classifying the rays, or the host.
 fn rays_device(backend: &Backend, choice: form_factor::RayDevice) -> String {
-    match form_factor::rays::ray_gpu(backend, choice) {
+    match form_factor::tracer::ray_gpu(backend, choice) {
         Some(_) => format!(
             "{} (traversal) and {}",
             backend.device_name(),

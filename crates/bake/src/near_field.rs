@@ -33,7 +33,8 @@
 use super::compute::Backend;
 use super::error::BakeError;
 use super::form_factor::batches::{trace_rows, Ray};
-use super::form_factor::rays::{cosine_direction, device_tracer, with_tracer, Hit, Origins};
+use super::form_factor::rays::{cosine_direction, Origins};
+use super::form_factor::tracer::{device_tracer, with_tracer, Hit};
 use super::form_factor::RayDevice;
 use super::pieces;
 use super::voxelize::Voxelization;

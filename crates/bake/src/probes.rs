@@ -11,7 +11,7 @@
 //! counts towards the probe being in a solid.
 
 use crate::error::BakeError;
-use crate::form_factor::rays::{with_tracer, Hit, Tracer};
+use crate::form_factor::tracer::{with_tracer, Hit, Tracer};
 use crate::voxelize::Voxelization;
 use radiosity_bakefile::probes::{
     ProbeEntries, ProbeGrid, ProbeState, Probes, OPEN_FRACTION, SOLID_FRACTION,

@@ -5,7 +5,7 @@
 //!
 //! The stages that cast rays from the real surfaces (the form factors, the
 //! near field) generate their rays on the host and classify the hits there
-//! with the reference's own code (`form_factor::rays::Tracer::resolve`):
+//! with the reference's own code (`form_factor::tracer::Tracer::resolve`):
 //! only the traversal, nearly all of a ray's cost, moves to the device. A
 //! device without `cl_khr_fp64` cannot run it ([`DeviceTracer::new`] says
 //! so); the stages then trace on the CPU and report that they did.

@@ -13,7 +13,7 @@
 //! hit of a segment is the same on both (`crate::trace`), so the rows are
 //! too.
 
-use super::rays::{Hit, Tracer};
+use super::tracer::{Hit, Tracer};
 use crate::error::BakeError;
 use crate::trace::{DeviceTracer, BATCH_RAYS};
 use radiosity_core::math::scale;

@@ -28,6 +28,7 @@ pub(crate) mod batches;
 mod contour;
 mod cpu;
 pub mod rays;
+pub mod tracer;
 pub use contour::*;
 pub use cpu::{cpu_pair, lattice, lattice_offsets};
 
