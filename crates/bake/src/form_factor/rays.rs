@@ -111,7 +111,7 @@ impl RowCounts {
 }
 
 /// The form factors of `vox`'s patches by rays from their pieces (module
-/// doc), traced on `backend`'s device where it can ([`ray_gpu`]),
+/// doc), traced on `backend`'s device where it can ([`super::tracer::ray_gpu`]),
 /// else on the CPU: the same counts either way. `progress(done, total)`
 /// counts emitter patches.
 pub fn form_factors(
