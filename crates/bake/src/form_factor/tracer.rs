@@ -1,6 +1,6 @@
 //! The scene as the rays from the real surfaces see it, and what a ray
 //! meets: the BVH of the original triangles, the cover rule, the piece
-//! lookup that credits a hit to its patch ([`Tracer`]), and where the
+//! lookup that credits a hit to its patch (`Tracer`), and where the
 //! nearest hits are found, on the CPU or on an OpenCL device
 //! ([`ray_gpu`], `crate::trace`). The form factors' rays
 //! (`super::rays`), the near field and the probes share it.
