@@ -945,3 +945,74 @@ fn rgb9e5_sparse_values_are_cheaper_at_the_same_error() {
         bc1(0.04, codec::LOG_RANGE_AUTO, SparseValues::Rgb9e5)
     );
 }
+
+/// The codec choice's estimate (`encode::h_error_sampled`, every
+/// `stride`-th row of tiles) against the full measure, over every default
+/// candidate on the synthetic room (1,632 patches, 51 rows of tiles): the
+/// estimate stays within `ESTIMATE_MARGIN` of the full error, so no
+/// candidate within the bound is rejected on it, and the choice with the
+/// estimate equals the choice without it.
+#[test]
+fn the_choices_estimate_rejects_only_what_the_full_measure_would() {
+    let (patches, t) = room(16, 4);
+    let n = patches.len();
+    let lights = synthetic::point_lights(&patches, 8, 5);
+    let reference: Vec<[Vec<f64>; 3]> = lights
+        .iter()
+        .map(|b| std::array::from_fn(|c| encode::mat_vec(&t[c], n, &b[c])))
+        .collect();
+    let stride = 4;
+    let mut worst = (1.0f64, 1.0f64);
+    for kind in encode::default_candidates() {
+        let e = encode::encode(kind, refs(&t), n).unwrap();
+        let full = encode::h_error(&e, &reference, &lights);
+        let est = encode::h_error_sampled(&e, &reference, &lights, stride);
+        // With stride 1 the estimate is the full measure, bit for bit.
+        assert_eq!(
+            encode::h_error_sampled(&e, &reference, &lights, 1).to_bits(),
+            full.to_bits()
+        );
+        if full > 0.0 {
+            let r = est / full;
+            eprintln!("{kind}: full {full:.4e}, estimate {est:.4e}, ratio {r:.3}");
+            worst = (worst.0.min(r), worst.1.max(r));
+            assert!(
+                r <= encode::ESTIMATE_MARGIN,
+                "{kind}: estimate {r} × the full error"
+            );
+        }
+    }
+    eprintln!("estimate / full: {:.3} to {:.3}", worst.0, worst.1);
+    let mut rejected_on_estimate = 0;
+    for bound in [0.005, 0.01, 0.02, 0.05] {
+        let pick = |s: usize| {
+            let mut estimated = 0;
+            let (kind, e, err) = encode::choose_with_stride(
+                refs(&t),
+                n,
+                &lights,
+                bound,
+                &[],
+                s,
+                &mut |_, _, _, how| {
+                    estimated += usize::from(!how.is_full());
+                },
+            )
+            .unwrap();
+            (kind, e.bytes_total(), err.to_bits(), estimated)
+        };
+        let (with, without) = (pick(stride), pick(1));
+        assert_eq!(with.0, without.0, "bound {bound}");
+        assert_eq!((with.1, with.2), (without.1, without.2));
+        assert_eq!(without.3, 0);
+        rejected_on_estimate += with.3;
+        eprintln!(
+            "bound {bound}: {} ({} candidates rejected on the estimate)",
+            with.0, with.3
+        );
+    }
+    // The tight bounds reject most candidates on the estimate: the path that
+    // saves the full measures is exercised, not only the one that falls
+    // through to them.
+    assert!(rejected_on_estimate > 0);
+}

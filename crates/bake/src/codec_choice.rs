@@ -112,10 +112,11 @@ pub fn encode(
                 &b0_samples,
                 max,
                 &[],
-                &mut |kind, err, bpe| {
+                &mut |kind, err, bpe, how| {
                     progress(&format!(
-                        "  {kind}: H error {:.3} %, {bpe:.4} bytes/entry",
-                        100.0 * err
+                        "  {kind}: H error {:.3} %{}, {bpe:.4} bytes/entry",
+                        100.0 * err,
+                        estimated(how)
                     ))
                 },
             )?;
@@ -132,10 +133,11 @@ pub fn encode(
                     &scaled_samples,
                     max,
                     &cheaper,
-                    &mut |kind, err, bpe| {
+                    &mut |kind, err, bpe, how| {
                         progress(&format!(
-                            "  {kind}, columns scaled: H error {:.3} %, {bpe:.4} bytes/entry",
-                            100.0 * err
+                            "  {kind}, columns scaled: H error {:.3} %{}, {bpe:.4} bytes/entry",
+                            100.0 * err,
+                            estimated(how)
                         ))
                     },
                 ) {
@@ -167,6 +169,17 @@ pub fn encode(
         summary,
         error_lights: b0_samples.len() as u64,
     })
+}
+
+/// How a progress line qualifies a candidate's error.
+fn estimated(how: encode::Measured) -> String {
+    match how {
+        encode::Measured::Full { estimate: None } => String::new(),
+        encode::Measured::Full { estimate: Some(e) } => format!(" (estimate {:.3} %)", 100.0 * e),
+        encode::Measured::Estimated { stride } => {
+            format!(" (estimated on 1 row of tiles in {stride}: rejected)")
+        }
+    }
 }
 
 /// `B0 = ρ ∘ D + E` (f32, per channel) for `count` seeded random lights

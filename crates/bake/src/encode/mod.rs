@@ -10,8 +10,8 @@ pub mod bc4;
 pub mod measure;
 
 pub use measure::{
-    choose, choose_with, default_candidates, h_error, mat_vec, measure, CodecError,
-    BLOCK_CODEC_SLACK,
+    choose, choose_with, choose_with_stride, default_candidates, estimate_stride, h_error,
+    h_error_sampled, mat_vec, measure, CodecError, Measured, BLOCK_CODEC_SLACK, ESTIMATE_MARGIN,
 };
 
 use bc1::encode_bc1_tile;

@@ -47,12 +47,33 @@ impl Encoded {
     /// `gather_f64` of its `B0` bit for bit: the same terms in the same
     /// order.
     pub fn gather_many_f64(&self, b0s: &[[&[f32]; 3]]) -> Vec<[Vec<f64>; 3]> {
-        self.gather_many_in::<f64>(b0s)
+        self.gather_many_in::<f64>(b0s, 1)
+    }
+
+    /// [`Encoded::gather_many_f64`] of every `stride`-th row of tiles only
+    /// (rows `tr · TILE ..` with `tr % stride == 0`, [`TILE`] rows each):
+    /// the rows gathered equal `gather_many_f64`'s bit for bit, the others
+    /// are 0. The bake's codec choice estimates a candidate's error on
+    /// them ([`Encoded::sampled_tile_rows`]).
+    ///
+    /// [`TILE`]: super::TILE
+    pub fn gather_many_f64_sampled(
+        &self,
+        b0s: &[[&[f32]; 3]],
+        stride: usize,
+    ) -> Vec<[Vec<f64>; 3]> {
+        self.gather_many_in::<f64>(b0s, stride.max(1))
+    }
+
+    /// Whether row `i` is among those [`Encoded::gather_many_f64_sampled`]
+    /// gathers with `stride`.
+    pub fn sampled_tile_rows(&self, i: usize, stride: usize) -> bool {
+        (i / self.index.tile).is_multiple_of(stride.max(1))
     }
 
     /// The gather with accumulators of type `A`.
     fn gather_in<A: Accumulator>(&self, b0: [&[f32]; 3]) -> [Vec<A>; 3] {
-        self.gather_many_in::<A>(&[b0])
+        self.gather_many_in::<A>(&[b0], 1)
             .pop()
             .expect("one result per B0")
     }
@@ -60,8 +81,12 @@ impl Encoded {
     /// The gather of every `B0` in `b0s` with accumulators of type `A`:
     /// per row of tiles, the stored tiles decoded once and multiplied by
     /// each `B0` (accumulated in column order), then the sparse entries of
-    /// each row.
-    fn gather_many_in<A: Accumulator>(&self, b0s: &[[&[f32]; 3]]) -> Vec<[Vec<A>; 3]> {
+    /// each row; only every `stride`-th row of tiles (the others 0).
+    fn gather_many_in<A: Accumulator>(
+        &self,
+        b0s: &[[&[f32]; 3]],
+        stride: usize,
+    ) -> Vec<[Vec<A>; 3]> {
         let n = self.n;
         for b0 in b0s {
             for b in b0 {
@@ -97,6 +122,9 @@ impl Encoded {
                 let r0 = tr * tile;
                 let h = tile.min(s - r0);
                 let mut acc = vec![vec![[A::default(); 3]; h]; k];
+                if !tr.is_multiple_of(stride) {
+                    return acc;
+                }
                 let mut buf = vec![0.0f32; tile * tile * ch];
                 self.each_tile_of_row(&book, tr, &mut buf, |t, buf| {
                     for (acc_s, b0) in acc.iter_mut().zip(b0s) {
@@ -132,6 +160,9 @@ impl Encoded {
                 }
                 if !sp.is_empty() {
                     for (i, window) in sp.row_ptr.windows(2).enumerate() {
+                        if !(i / tile).is_multiple_of(stride) {
+                            continue;
+                        }
                         for e in window[0] as usize..window[1] as usize {
                             let j = sp.cols[e] as usize;
                             for (oc, hc) in h.iter_mut().enumerate() {
