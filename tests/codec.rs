@@ -961,17 +961,72 @@ fn the_choices_estimate_rejects_only_what_the_full_measure_would() {
         .iter()
         .map(|b| std::array::from_fn(|c| encode::mat_vec(&t[c], n, &b[c])))
         .collect();
+    // The bake's own stride: none up to 191 rows of tiles (6,112 patches,
+    // where the estimate would not pay for itself), then 1 row of tiles in
+    // ⌊tiles / 48⌋.
+    assert_eq!(encode::estimate_stride(n), 1);
+    assert_eq!(encode::estimate_stride(6_112), 1);
+    assert_eq!(encode::estimate_stride(6_113), encode::ESTIMATE_MIN_STRIDE);
+    assert_eq!(encode::estimate_stride(32_000), 1_000 / 48);
     let stride = 4;
     let mut worst = (1.0f64, 1.0f64);
     for kind in encode::default_candidates() {
         let e = encode::encode(kind, refs(&t), n).unwrap();
+        let sampled = encode::encode_sampled(kind, refs(&t), n, stride).unwrap();
         let full = encode::h_error(&e, &reference, &lights);
-        let est = encode::h_error_sampled(&e, &reference, &lights, stride);
+        let est = encode::h_error_sampled(&sampled, &reference, &lights, stride);
         // With stride 1 the estimate is the full measure, bit for bit.
         assert_eq!(
             encode::h_error_sampled(&e, &reference, &lights, 1).to_bits(),
             full.to_bits()
         );
+        // The sampled encoding stores the full one's tiles in its rows of
+        // tiles, byte for byte, and nothing in the others; only the log
+        // formats' mass correction (the scale) may differ.
+        let tps = e.index.tiles_per_side;
+        assert_eq!(sampled.index.tiles_per_side, tps);
+        for tr in 0..tps {
+            let (a, b) = (&e.index, &sampled.index);
+            let full_row = &a.cols[a.row_start[tr] as usize..a.row_start[tr + 1] as usize];
+            let kept = &b.cols[b.row_start[tr] as usize..b.row_start[tr + 1] as usize];
+            if tr % stride == 0 {
+                assert_eq!(full_row, kept, "{kind}: row of tiles {tr}");
+            } else {
+                assert!(kept.is_empty(), "{kind}: row of tiles {tr}");
+            }
+        }
+        let row_bytes = |x: &radiosity_bakefile::codec::Encoded, tr: usize| {
+            let (s, e) = (
+                x.index.row_start[tr] as usize,
+                x.index.row_start[tr + 1] as usize,
+            );
+            let start = x
+                .index
+                .offsets
+                .get(s)
+                .map_or(x.dense.len(), |&o| o as usize);
+            let end = x
+                .index
+                .offsets
+                .get(e)
+                .map_or(x.dense.len(), |&o| o as usize);
+            x.dense[start..end].to_vec()
+        };
+        for tr in (0..tps).step_by(stride) {
+            assert_eq!(
+                row_bytes(&e, tr),
+                row_bytes(&sampled, tr),
+                "{kind}: bytes of row {tr}"
+            );
+        }
+        assert_eq!(sampled.sparse.cols, e.sparse.cols);
+        if kind.log_params().is_none() {
+            assert_eq!(sampled.scale, e.scale);
+            assert_eq!(
+                est.to_bits(),
+                encode::h_error_sampled(&e, &reference, &lights, stride).to_bits()
+            );
+        }
         if full > 0.0 {
             let r = est / full;
             eprintln!("{kind}: full {full:.4e}, estimate {est:.4e}, ratio {r:.3}");

@@ -1,34 +1,52 @@
 //! Error measures of a compressed matrix (docs/design.md section 3, measure 3)
 //! and the choice of the cheapest codec setting under an error bound.
 
-use super::{encode, EncodeError};
+use super::{encode, encode_sampled, EncodeError};
 use radiosity_bakefile::codec::{CodecKind, Encoded, SparseValues, LOG_RANGE_AUTO};
 use rayon::prelude::*;
 use serde::Serialize;
 
 /// Rows of tiles ([`radiosity_bakefile::codec::TILE`] rows each) that the
-/// choice's estimate gathers at least: every `stride`-th row of tiles,
-/// `stride = ⌊tiles / 48⌋` ([`estimate_stride`]), so below 3,072 patches
-/// every candidate is measured in full.
+/// choice's estimate encodes and gathers at least: 1 row of tiles in
+/// `stride = ⌊tiles / 48⌋` ([`estimate_stride`]).
 pub const ESTIMATE_TILE_ROWS: usize = 48;
+
+/// The smallest stride the estimate is made at. A sampled candidate still
+/// pays the passes over the whole matrix (the sparse selection, the scales,
+/// the log range) and one that goes on to the full measure pays both: on
+/// Sponza at 3,938 patches and stride 2, a rejection took 1.5 s against
+/// 2.9 s for a full measure and a candidate measured both ways 4.4 s, so
+/// the encode stage was no faster (24.4 s against 23.8 s without the
+/// estimate, one run). From stride 4 (above 6,112 patches) a rejection
+/// costs at most about half of a full measure and a pass-through a quarter
+/// more.
+pub const ESTIMATE_MIN_STRIDE: usize = 4;
 
 /// A candidate whose estimated `H` error is above the bound by more than
 /// this factor is rejected without its full measure; any other is measured
 /// in full, and only the full measure accepts. The estimate is the same
-/// relative RMS over every `stride`-th row of tiles: over the 18 default
+/// relative RMS over 1 row of tiles in `stride`: over the 18 default
 /// candidates on the synthetic room at stride 4 it stayed within
 /// 0.78–1.06 of the full measure (`tests/codec.rs`, which holds it under
 /// this margin), and on Sponza at 3,938 patches (stride 2) within
-/// 0.91–0.93 for the four candidates measured both ways; so a candidate
-/// rejected by it has a full error above the bound. A wrong rejection would only cost bytes (a dearer setting
-/// chosen), never the bound: only the full measure accepts. The bake's
-/// progress lines print the estimate beside each full measure, a running
-/// check on every scene.
+/// 0.91–0.93 for the 4 candidates measured both ways after the greedy
+/// reordering and 1.08–1.11 for the 4 after the Hilbert one; so a
+/// candidate rejected by it has a full error above the bound. A wrong
+/// rejection would only cost bytes (a dearer setting chosen), never the
+/// bound: only the full measure accepts. The bake's progress lines print
+/// the estimate beside each full measure, a running check on every scene.
 pub const ESTIMATE_MARGIN: f64 = 1.5;
 
-/// The estimate's row stride for `n` patches (1: no estimate).
+/// The estimate's row stride for `n` patches: `⌊tiles / 48⌋`, or 1 (no
+/// estimate, every candidate measured in full) below
+/// [`ESTIMATE_MIN_STRIDE`].
 pub fn estimate_stride(n: usize) -> usize {
-    (n.div_ceil(radiosity_bakefile::codec::TILE) / ESTIMATE_TILE_ROWS).max(1)
+    let stride = n.div_ceil(radiosity_bakefile::codec::TILE) / ESTIMATE_TILE_ROWS;
+    if stride >= ESTIMATE_MIN_STRIDE {
+        stride
+    } else {
+        1
+    }
 }
 
 /// How a candidate's `H` error was found.
@@ -343,22 +361,28 @@ pub fn choose_with_stride(
                 continue;
             }
         }
-        let e = encode(kind, t, n)?;
-        let estimate = (stride > 1).then(|| h_error_sampled(&e, &reference, b0_samples, stride));
-        let (err, how) = match estimate {
-            Some(est) if est > ESTIMATE_MARGIN * max_error => (est, Measured::Estimated { stride }),
-            _ => (
-                h_error(&e, &reference, b0_samples),
-                Measured::Full { estimate },
-            ),
+        // The estimate: 1 row of tiles in `stride` encoded and gathered.
+        let estimate = if stride > 1 {
+            let e = encode_sampled(kind, t, n, stride)?;
+            let est = h_error_sampled(&e, &reference, b0_samples, stride);
+            if est > ESTIMATE_MARGIN * max_error {
+                let bpe = sampled_bytes_per_entry(&e, stride);
+                on_candidate(kind, est, bpe, Measured::Estimated { stride });
+                tried.push(format!("{kind}: {est:.3e} (estimated) at {bpe:.3} B/entry"));
+                continue;
+            }
+            Some(est)
+        } else {
+            None
         };
-        on_candidate(kind, err, e.bytes_per_entry(), how);
+        let e = encode(kind, t, n)?;
+        let err = h_error(&e, &reference, b0_samples);
+        on_candidate(kind, err, e.bytes_per_entry(), Measured::Full { estimate });
         tried.push(format!(
-            "{kind}: {err:.3e}{} at {:.3} B/entry",
-            if how.is_full() { "" } else { " (estimated)" },
+            "{kind}: {err:.3e} at {:.3} B/entry",
             e.bytes_per_entry()
         ));
-        if how.is_full() && err <= max_error {
+        if err <= max_error {
             passing.push((kind, e, err));
         }
     }
@@ -440,6 +464,20 @@ pub fn h_error(e: &Encoded, reference: &[[Vec<f64>; 3]], b0_samples: &[[Vec<f32>
         }
     }
     ratio(d2.sqrt(), r2.sqrt())
+}
+
+/// The bytes per entry the full encoding of a candidate is expected to
+/// take, from its [`encode_sampled`] form: the dense part and the tile
+/// index scaled from the rows of tiles encoded to all of them; the sparse
+/// part is already whole.
+fn sampled_bytes_per_entry(e: &Encoded, stride: usize) -> f64 {
+    let tps = e.index.tiles_per_side;
+    let encoded = tps.div_ceil(stride.max(1));
+    if e.n == 0 || encoded == 0 {
+        return 0.0;
+    }
+    let scaled = (e.bytes_dense() + e.bytes_index()) as f64 * tps as f64 / encoded as f64;
+    (scaled + e.bytes_sparse() as f64) / (e.n * e.n) as f64
 }
 
 /// [`h_error`] over every `stride`-th row of tiles only

@@ -12,6 +12,7 @@ pub mod measure;
 pub use measure::{
     choose, choose_with, choose_with_stride, default_candidates, estimate_stride, h_error,
     h_error_sampled, mat_vec, measure, CodecError, Measured, BLOCK_CODEC_SLACK, ESTIMATE_MARGIN,
+    ESTIMATE_MIN_STRIDE,
 };
 
 use bc1::encode_bc1_tile;
@@ -274,6 +275,33 @@ pub struct TileCounts {
 /// finite and ≥ 0) with `kind` (module doc). Deterministic: the same input
 /// gives the same bytes.
 pub fn encode(kind: CodecKind, t: [&[f32]; 3], n: usize) -> Result<Encoded, EncodeError> {
+    encode_in(kind, t, n, 1)
+}
+
+/// [`encode`] of 1 row of tiles in `stride` only (tile rows `tr` with
+/// `tr % stride == 0`; the others are stored as empty tiles and read as
+/// 0), for the codec choice's estimate
+/// ([`super::measure::h_error_sampled`]). The sparse part, the scales and
+/// the log range are the full encoding's, and so are the encoded tiles'
+/// bytes; only the log formats' mass correction differs, taken over the
+/// encoded tiles instead of all. The dense work is 1/`stride` of
+/// [`encode`]'s.
+pub fn encode_sampled(
+    kind: CodecKind,
+    t: [&[f32]; 3],
+    n: usize,
+    stride: usize,
+) -> Result<Encoded, EncodeError> {
+    encode_in(kind, t, n, stride.max(1))
+}
+
+/// [`encode`] with only 1 row of tiles in `stride` encoded.
+fn encode_in(
+    kind: CodecKind,
+    t: [&[f32]; 3],
+    n: usize,
+    stride: usize,
+) -> Result<Encoded, EncodeError> {
     let start = Instant::now();
     kind.validate()?;
     check_matrix(t, n)?;
@@ -435,6 +463,9 @@ pub fn encode(kind: CodecKind, t: [&[f32]; 3], n: usize) -> Result<Encoded, Enco
         .into_par_iter()
         .map(|k| {
             let (tr, tc) = (k / tps, k % tps);
+            if !tr.is_multiple_of(stride) {
+                return (None, TileCounts::default());
+            }
             let (r0, c0) = (tr * TILE, tc * TILE);
             let (h, w) = (TILE.min(image_size - r0), TILE.min(image_size - c0));
             let mut vals = vec![0.0f32; h * w * ch];
