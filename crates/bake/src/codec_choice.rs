@@ -7,7 +7,7 @@
 use crate::config::{BakeConfig, CodecChoice, ERROR_LIGHTS_SEED};
 use crate::encode;
 use crate::error::BakeError;
-use crate::report::{spinner, CodecSummary};
+use crate::report::{bar_at_most, spinner, CodecSummary};
 use radiosity_bakefile::codec::Encoded;
 use radiosity_core::direct;
 use radiosity_core::patch::Patch;
@@ -64,7 +64,18 @@ pub fn encode(
         .iter()
         .map(|b| radiosity_bakefile::codec::scaled_input([&b[0], &b[1], &b[2]], &scales))
         .collect();
-    let sp = spinner("encode");
+    // A fixed setting is one encoding: a spinner. The choice counts its
+    // candidates against the most it may try in each pass (it stops at the
+    // first within the bound and its block alternative), so its count and
+    // time left are upper bounds.
+    let sp = match config.codec {
+        CodecChoice::Fixed(_) => spinner("encode"),
+        CodecChoice::MaxError(_) => {
+            let bar = bar_at_most("encode", "candidates");
+            bar.set_length(encode::default_candidates().len() as u64);
+            bar
+        }
+    };
     let (encoded, h_error, chosen_by) = match config.codec {
         CodecChoice::Fixed(kind) => {
             progress(&format!("encoding with {kind}"));
@@ -113,6 +124,7 @@ pub fn encode(
                 max,
                 &[],
                 &mut |kind, err, bpe, how| {
+                    sp.inc(1);
                     progress(&format!(
                         "  {kind}: H error {:.3} %{}, {bpe:.4} bytes/entry",
                         100.0 * err,
@@ -126,6 +138,7 @@ pub fn encode(
             let scaled = if cheaper.is_empty() {
                 None
             } else {
+                sp.set_length(sp.position() + cheaper.len() as u64);
                 scale_columns(permuted, &scales, n);
                 match encode::choose_with(
                     channels_of(permuted),
@@ -134,6 +147,7 @@ pub fn encode(
                     max,
                     &cheaper,
                     &mut |kind, err, bpe, how| {
+                        sp.inc(1);
                         progress(&format!(
                             "  {kind}, columns scaled: H error {:.3} %{}, {bpe:.4} bytes/entry",
                             100.0 * err,

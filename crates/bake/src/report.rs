@@ -150,6 +150,22 @@ pub fn bar(stage: &str) -> indicatif::ProgressBar {
     bar
 }
 
+/// A progress bar for a stage whose work has an upper bound it may stop
+/// short of (the codec choice's candidates): the count and the time left
+/// are both marked as at most.
+pub fn bar_at_most(stage: &str, unit: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(&format!(
+            "{{prefix:>14}} [{{bar:40}}] {{pos}}/{{len}} {unit} at most ({{eta}} left at most)"
+        ))
+        .expect("a valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_prefix(stage.to_string());
+    bar
+}
+
 /// A spinner with the elapsed time for a stage that cannot count its work
 /// (hidden when stderr is not a terminal).
 pub fn spinner(stage: &str) -> indicatif::ProgressBar {
