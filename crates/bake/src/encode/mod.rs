@@ -281,7 +281,7 @@ pub fn encode(kind: CodecKind, t: [&[f32]; 3], n: usize) -> Result<Encoded, Enco
 /// [`encode`] of 1 row of tiles in `stride` only (tile rows `tr` with
 /// `tr % stride == 0`; the others are stored as empty tiles and read as
 /// 0), for the codec choice's estimate
-/// ([`super::measure::h_error_sampled`]). The sparse part, the scales and
+/// ([`measure::h_error_sampled`]). The sparse part, the scales and
 /// the log range are the full encoding's, and so are the encoded tiles'
 /// bytes; only the log formats' mass correction differs, taken over the
 /// encoded tiles instead of all. The dense work is 1/`stride` of
