@@ -111,28 +111,49 @@ impl Encoded {
             &scaled_refs[..]
         };
         let k = b0s.len();
+        if k == 0 {
+            return Vec::new();
+        }
         let book = self.codebook();
         let s = self.image_size;
         let tile = self.index.tile;
         let ch = self.channels;
-        // Per row of tiles: acc[sample][row][channel].
-        let per_row: Vec<Vec<Vec<[A; 3]>>> = (0..self.index.tiles_per_side)
+        // B0 converted once and laid out [column][channel][sample], so that
+        // each decoded entry meets every sample's value in one contiguous
+        // run (the innermost loop vectorises over the samples). Each
+        // accumulator still sums its terms in the same order as a single
+        // gather: tiles in column order, columns within a tile in order.
+        let mut b0t = vec![A::default(); n * 3 * k];
+        for (si, b0) in b0s.iter().enumerate() {
+            for (oc, b) in b0.iter().enumerate() {
+                for (j, &x) in b.iter().enumerate() {
+                    b0t[(j * 3 + oc) * k + si] = A::from(x);
+                }
+            }
+        }
+        // Per row of tiles: acc[row][channel][sample].
+        let per_row: Vec<Vec<A>> = (0..self.index.tiles_per_side)
             .into_par_iter()
             .map(|tr| {
                 let r0 = tr * tile;
                 let h = tile.min(s - r0);
-                let mut acc = vec![vec![[A::default(); 3]; h]; k];
+                let mut acc = vec![A::default(); h * 3 * k];
                 if !tr.is_multiple_of(stride) {
                     return acc;
                 }
                 let mut buf = vec![0.0f32; tile * tile * ch];
                 self.each_tile_of_row(&book, tr, &mut buf, |t, buf| {
-                    for (acc_s, b0) in acc.iter_mut().zip(b0s) {
-                        for (r, acc_r) in acc_s.iter_mut().enumerate().take(t.rows) {
-                            for c in 0..t.cols {
-                                let v = &buf[(r * t.w + c) * ch..(r * t.w + c + 1) * ch];
-                                for (oc, out) in acc_r.iter_mut().enumerate() {
-                                    *out += A::from(v[oc.min(ch - 1)]) * A::from(b0[oc][t.c0 + c]);
+                    for (r, acc_r) in acc.chunks_exact_mut(3 * k).enumerate().take(t.rows) {
+                        for c in 0..t.cols {
+                            let v = &buf[(r * t.w + c) * ch..(r * t.w + c + 1) * ch];
+                            let j = t.c0 + c;
+                            let bj = &b0t[j * 3 * k..(j + 1) * 3 * k];
+                            for (oc, (a, b)) in
+                                acc_r.chunks_exact_mut(k).zip(bj.chunks_exact(k)).enumerate()
+                            {
+                                let x = A::from(v[oc.min(ch - 1)]);
+                                for (a, &b) in a.iter_mut().zip(b) {
+                                    *a += x * b;
                                 }
                             }
                         }
@@ -149,11 +170,11 @@ impl Encoded {
                 let b0 = &b0s[si];
                 let mut h: [Vec<A>; 3] = std::array::from_fn(|_| vec![A::default(); n]);
                 for (tr, acc) in per_row.iter().enumerate() {
-                    for (r, v) in acc[si].iter().enumerate() {
+                    for (r, v) in acc.chunks_exact(3 * k).enumerate() {
                         let i = tr * tile + r;
                         if i < n {
-                            for oc in 0..3 {
-                                h[oc][i] = v[oc];
+                            for (oc, hc) in h.iter_mut().enumerate() {
+                                hc[i] = v[oc * k + si];
                             }
                         }
                     }
