@@ -5,11 +5,14 @@
 //! that fits — before the time of voxelizing or tracing is spent, and
 //! before anything is written.
 //!
-//! **What a bake of `n` patches holds** (bytes, dominant terms; every
-//! matrix is `n × n`):
-//! - form factors by rays: the counts (f32, `4n²`) and the symmetrised
-//!   `A F` (f64, `8n²`), then `F` (f32, `4n²`): `16n²` at the peak;
-//! - transfer and after: `F` (kept for the export, `4n²`), `T` (3 channels
+//! **What a bake holds** (bytes, dominant terms). The form factors run
+//! over all `N` of the voxelization's patches; the patches that see no
+//! other surface (Sponza's roofs and outer walls: about 30 % of them) are
+//! removed there, and every later matrix is `n × n` over the `n` kept:
+//! - form factors by rays: the counts (f32, `4N²`) and the symmetrised
+//!   `A F` (f64, `8N²`), then `F` (f32, `4n²`): `16N²` at the most
+//!   ([`check_form_factors`]);
+//! - transfer and after ([`check`]): `F` (kept for the export, `4n²`), `T` (3 channels
 //!   of f32, `12n²`), their reordered copies for the encoder (`12n²`), and
 //!   during the LU solve its host copy of `I − diag(ρ) F` (`4n²`): `32n²`;
 //! - on the OpenCL device, the transfer's padded matrices: two for the LU
@@ -33,6 +36,10 @@ use crate::error::BakeError;
 /// The stage name in errors.
 pub const STAGE: &str = "memory budget";
 
+/// Host bytes per `N²` of the form factors over all `N` of the
+/// voxelization's patches (module doc): the rays' counts and the
+/// symmetrised `A F` at the peak, with room for `F`.
+const FORM_FACTORS_PER_ENTRY: u64 = 16;
 /// Host bytes per `n²` of the stages after the form factors (module doc).
 const HOST_PER_ENTRY: u64 = 32;
 /// Extra host bytes per `n²` of the CPU f64 reference.
@@ -118,6 +125,27 @@ pub fn host_available() -> Option<u64> {
 /// Gigabytes, for messages.
 fn gb(bytes: u64) -> String {
     format!("{:.1} GB", bytes as f64 / 1e9)
+}
+
+/// Checks that the form factors of all `n_all` voxel patches fit the
+/// host's `available` bytes (`None`: unknown, not checked); the stages
+/// after them are checked on the patches they keep ([`check`]).
+pub fn check_form_factors(n_all: usize, available: Option<u64>) -> Result<(), BakeError> {
+    let need = FORM_FACTORS_PER_ENTRY.saturating_mul((n_all as u64).saturating_mul(n_all as u64));
+    match available {
+        Some(avail) if need > avail => Err(BakeError::TooLarge {
+            stage: STAGE,
+            detail: format!(
+                "the voxelization has {n_all} patches: their form factors need about {} of \
+                 memory ({n_all} × {n_all} counts and sums), this machine has {} available; at \
+                 most about {} voxel patches fit",
+                gb(need),
+                gb(avail),
+                ((avail / FORM_FACTORS_PER_ENTRY) as f64).sqrt() as u64
+            ),
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// Checks that a bake of `n` patches fits: the format limit, the host's
@@ -231,6 +259,35 @@ mod tests {
         assert!(check(15_616, "n", None, device, false).is_ok());
         assert!(check(15_617, "n", None, device, false).is_err());
         assert_eq!(largest_fitting(u64::MAX, device, false), 15_616);
+    }
+
+    /// The form factors are checked on all of the voxelization's patches
+    /// at 16 bytes per pair, the later stages on the kept ones: Sponza at
+    /// `--patches 20000` (29,202 voxel patches, about 20,000 kept) fits
+    /// 24.6 GB, which counting every voxel patch at the later stages'
+    /// rate (34.1 GB) refused.
+    #[test]
+    fn the_form_factors_count_every_voxel_patch_the_rest_the_kept_ones() {
+        let avail = Some(24_600_000_000);
+        assert!(check_form_factors(29_202, avail).is_ok());
+        assert!(check(20_000, "n", avail, Device::CpuReference, false).is_err());
+        let pocl = DeviceInfo {
+            kind: "CPU".into(),
+            ..gpu(24_000_000_000, 24_000_000_000)
+        };
+        let device = Device::OpenCl {
+            info: &pocl,
+            matrices: 2,
+        };
+        // 40 bytes per pair with the PoCL device's two matrices in host RAM.
+        assert!(check(20_000, "n", avail, device, false).is_ok());
+        assert!(check(29_202, "n", avail, device, false).is_err());
+        let e = check_form_factors(40_000, avail).unwrap_err().to_string();
+        assert!(e.contains("40000 patches") && e.contains("25.6 GB"), "{e}");
+        // ⌊√(24.6e9 / 16)⌋ = 39,210.
+        assert!(e.contains("at most about 39210 voxel patches"), "{e}");
+        assert!(check_form_factors(39_210, avail).is_ok());
+        assert!(check_form_factors(39_211, avail).is_err());
     }
 
     /// The H200 of issue 41 (141 GB, a quarter of it in one buffer) fits

@@ -429,9 +429,25 @@ pub fn transfer_stages(
         seconds: t.elapsed().as_secs_f64(),
         device: backend.device_name(),
     });
+    // The form factors run over every voxel patch; the later stages over
+    // those that see another surface, which the search counted at the
+    // chosen size (all of them when a voxel size was given). Both are
+    // checked now, before the form factors' time is spent, and the later
+    // stages again on the exact count the form factors keep.
+    budget::check_form_factors(vox.patches.len(), budget::host_available())?;
+    let expected_kept = vox
+        .stats
+        .search
+        .iter()
+        .rev()
+        .find(|&&(size, _)| size == vox.stats.voxel_size)
+        .map(|&(_, counted)| counted as usize)
+        .filter(|&k| k > 0)
+        .unwrap_or(vox.patches.len())
+        .min(vox.patches.len());
     budget::check(
-        vox.patches.len(),
-        "the voxelization's patch count",
+        expected_kept,
+        "the count of voxel patches that see another surface",
         budget::host_available(),
         budget_device(backend, &config.transfer),
         config.export.is_some(),
@@ -471,6 +487,13 @@ pub fn transfer_stages(
     }
     let patches: Vec<Patch> = ff.kept.iter().map(|&i| vox.patches[i].clone()).collect();
     let albedo: Vec<[f32; 3]> = patches.iter().map(|p| p.albedo.map(|a| a as f32)).collect();
+    budget::check(
+        ff.n,
+        "the patch count the form factors keep",
+        budget::host_available(),
+        budget_device(backend, &config.transfer),
+        config.export.is_some(),
+    )?;
 
     progress(&format!(
         "transfer matrix, {} bounces, n = {}",
