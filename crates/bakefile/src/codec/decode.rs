@@ -148,8 +148,10 @@ impl Encoded {
                             let v = &buf[(r * t.w + c) * ch..(r * t.w + c + 1) * ch];
                             let j = t.c0 + c;
                             let bj = &b0t[j * 3 * k..(j + 1) * 3 * k];
-                            for (oc, (a, b)) in
-                                acc_r.chunks_exact_mut(k).zip(bj.chunks_exact(k)).enumerate()
+                            for (oc, (a, b)) in acc_r
+                                .chunks_exact_mut(k)
+                                .zip(bj.chunks_exact(k))
+                                .enumerate()
                             {
                                 let x = A::from(v[oc.min(ch - 1)]);
                                 for (a, &b) in a.iter_mut().zip(b) {
