@@ -79,6 +79,30 @@ fn run(dir: &Path, parts: &[&[&str]], display: bool) -> Output {
     radiosity(dir, &parts.concat(), display)
 }
 
+/// `obj` rendered headless on GL into `png` at `size`, and the exposure the
+/// renderer picked for it: the window's later frames keep one exposure, so
+/// a test gives the viewer this one to compare both sides.
+fn gl_render_exposure(dir: &Path, obj: &str, png: &Path, size: &[&str]) -> String {
+    let o = run(
+        dir,
+        &[
+            &[
+                "render",
+                obj,
+                "--backend",
+                "gl",
+                "-o",
+                png.to_str().unwrap(),
+            ][..],
+            size,
+        ],
+        false,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    common::printed_exposure(&err)
+}
+
 /// The viewer under Xvfb for `frames` frames with `keys` pressed, at a
 /// fixed `exposure`, the GL's own patch light (as `render --backend gl`
 /// computes it: the CPU's differs by a few 1/255 here,
@@ -354,17 +378,7 @@ fn keys_pressed_in_the_window_edit_lights_that_are_saved_and_drawn() {
     let png = |name: &str| dir.join(name).to_str().unwrap().to_string();
     // The box as bundled, and the exposure the renderer picks for it: the
     // window's later frames keep one exposure, so both sides use this one.
-    let o = run(
-        &dir,
-        &[
-            &["render", obj_s, "--backend", "gl", "-o", &png("base.png")][..],
-            &size[..],
-        ],
-        false,
-    );
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{err}");
-    let exposure = common::printed_exposure(&err);
+    let exposure = gl_render_exposure(&dir, obj_s, Path::new(&png("base.png")), &size);
     // B: a spot at the camera looking ahead; two steps left; ten times
     // dimmer by 0.8; G: a sun shining ahead, also dimmed; F5 saves. 25
     // presses after frames 1–25, frame 26 shot.
@@ -641,25 +655,7 @@ fn keys_move_a_moving_object_that_is_saved_and_drawn() {
         resolved: None,
     }];
     config.save(&json).unwrap();
-    let png = dir.join("base.png");
-    let o = run(
-        &dir,
-        &[
-            &[
-                "render",
-                obj_s,
-                "--backend",
-                "gl",
-                "-o",
-                png.to_str().unwrap(),
-            ][..],
-            &SMALL[..],
-        ],
-        false,
-    );
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{err}");
-    let exposure = common::printed_exposure(&err);
+    let exposure = gl_render_exposure(&dir, obj_s, &dir.join("base.png"), &SMALL);
     let saved = dir.join("saved.json");
     let o = view_with_keys(
         &dir,
