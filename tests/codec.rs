@@ -1071,3 +1071,22 @@ fn the_choices_estimate_rejects_only_what_the_full_measure_would() {
     // through to them.
     assert!(rejected_on_estimate > 0);
 }
+
+/// The codec choice's exact reference, all samples in one pass over each
+/// channel (`encode::exact_products`), equals `encode::mat_vec` per sample
+/// and channel value for value: the same products summed in the same
+/// order (an exact zero may differ in sign only, which `==` ignores).
+#[test]
+fn exact_products_equal_one_product_per_sample() {
+    let (patches, t) = room(6, 3);
+    let n = patches.len();
+    let lights = synthetic::point_lights(&patches, 5, 11);
+    let all = encode::exact_products(refs(&t), n, &lights);
+    assert_eq!(all.len(), lights.len());
+    for (h, b) in all.iter().zip(&lights) {
+        for c in 0..3 {
+            assert_eq!(h[c], encode::mat_vec(&t[c], n, &b[c]), "channel {c}");
+        }
+    }
+    assert!(encode::exact_products(refs(&t), n, &[]).is_empty());
+}

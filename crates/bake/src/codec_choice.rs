@@ -83,7 +83,7 @@ pub fn encode(
                 let tp = channels_of(permuted);
                 let e = encode::encode(kind, tp, n)?;
                 let err = (!b0_samples.is_empty()).then(|| {
-                    let reference = exact_h(tp, n, &b0_samples);
+                    let reference = encode::exact_products(tp, n, &b0_samples);
                     encode::h_error(&e, &reference, &b0_samples)
                 });
                 (e, err)
@@ -93,7 +93,7 @@ pub fn encode(
                     scale_columns(permuted, &scales, n);
                     let tp = channels_of(permuted);
                     let mut e1 = encode::encode(kind, tp, n)?;
-                    let reference = exact_h(tp, n, &scaled_samples);
+                    let reference = encode::exact_products(tp, n, &scaled_samples);
                     let err1 = encode::h_error(&e1, &reference, &scaled_samples);
                     progress(&format!(
                         "  H error {:.3} %, with columns scaled by patch area {:.3} %",
@@ -232,12 +232,4 @@ fn scale_columns(m: &mut [Vec<f32>], s: &[f32], n: usize) {
             }
         });
     }
-}
-
-/// The exact `T · B0` in f64 for every sample and channel.
-fn exact_h(t: [&[f32]; 3], n: usize, samples: &[[Vec<f32>; 3]]) -> Vec<[Vec<f64>; 3]> {
-    samples
-        .iter()
-        .map(|b| std::array::from_fn(|c| encode::mat_vec(t[c], n, &b[c])))
-        .collect()
 }
