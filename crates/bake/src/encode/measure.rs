@@ -218,7 +218,7 @@ pub fn mat_vec(m: &[f32], n: usize, v: &[f32]) -> Vec<f64> {
 /// The exact `H = T B0` of every sample and channel (f64), as
 /// [`mat_vec`] per sample and channel gives it, the same products summed
 /// in the same order, but each row of `T` read once for all samples: `B0`
-/// is laid out [column][sample] so that the innermost loop runs over the
+/// is laid out `[column][sample]` so that the innermost loop runs over the
 /// samples. (The one difference from [`mat_vec`] is the sign of an exact
 /// zero sum, which no error measure sees.) Each of the 3 channels streams
 /// its matrix once instead of once per sample: 64 error lights read `T`
