@@ -25,26 +25,43 @@ pub fn run(
     use anyhow::Context as _;
     let scene = crate::core::scene::load(scene_path)?;
     let gpu = Gpu::new(selection).context("opening the OpenCL device")?;
+    let inputs = Inputs {
+        scene_path,
+        scene: &scene,
+        gpu: &gpu,
+        targets,
+        options,
+        cpu_reference,
+    };
     match options.method {
-        FormFactorMethod::Rays => rays(scene_path, &scene, &gpu, targets, options, cpu_reference),
-        FormFactorMethod::Contour => {
-            contour(scene_path, &scene, &gpu, targets, options, cpu_reference)
-        }
+        FormFactorMethod::Rays => rays(&inputs),
+        FormFactorMethod::Contour => contour(&inputs),
     }
+}
+
+/// What both methods' tables are made from.
+struct Inputs<'a> {
+    scene_path: &'a Path,
+    scene: &'a crate::core::scene::Scene,
+    gpu: &'a Gpu,
+    targets: &'a [usize],
+    options: &'a FormFactorOptions,
+    cpu_reference: bool,
 }
 
 /// The rays method's table (module doc): per target patch count, the
 /// rays traced on the device and on the CPU, their times and rays per
 /// second, and how many entries differ (0: the kernel's hits are the
 /// CPU's bit for bit).
-fn rays(
-    scene_path: &Path,
-    scene: &crate::core::scene::Scene,
-    gpu: &Gpu,
-    targets: &[usize],
-    options: &FormFactorOptions,
-    cpu_reference: bool,
-) -> anyhow::Result<String> {
+fn rays(inputs: &Inputs) -> anyhow::Result<String> {
+    let Inputs {
+        scene_path,
+        scene,
+        gpu,
+        targets,
+        options,
+        cpu_reference,
+    } = *inputs;
     use std::fmt::Write as _;
     let mut out = String::new();
     writeln!(
@@ -113,14 +130,15 @@ fn rays(
 }
 
 /// The contour method's table: the kernel against its f64 reference.
-fn contour(
-    scene_path: &Path,
-    scene: &crate::core::scene::Scene,
-    gpu: &Gpu,
-    targets: &[usize],
-    options: &FormFactorOptions,
-    cpu_reference: bool,
-) -> anyhow::Result<String> {
+fn contour(inputs: &Inputs) -> anyhow::Result<String> {
+    let Inputs {
+        scene_path,
+        scene,
+        gpu,
+        targets,
+        options,
+        cpu_reference,
+    } = *inputs;
     use std::fmt::Write as _;
     let mut out = String::new();
     writeln!(
