@@ -1042,18 +1042,11 @@ fn the_choices_estimate_rejects_only_what_the_full_measure_would() {
     for bound in [0.005, 0.01, 0.02, 0.05] {
         let pick = |s: usize| {
             let mut estimated = 0;
-            let (kind, e, err) = encode::choose_with_stride(
-                refs(&t),
-                n,
-                &lights,
-                bound,
-                &[],
-                s,
-                &mut |_, _, _, how| {
+            let (kind, e, err) =
+                encode::choose_with(refs(&t), n, &lights, bound, &[], s, &mut |_, _, _, how| {
                     estimated += usize::from(!how.is_full());
-                },
-            )
-            .unwrap();
+                })
+                .unwrap();
             (kind, e.bytes_total(), err.to_bits(), estimated)
         };
         let (with, without) = (pick(stride), pick(1));

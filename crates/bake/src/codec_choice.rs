@@ -123,6 +123,7 @@ pub fn encode(
                 &b0_samples,
                 max,
                 &[],
+                encode::estimate_stride(n),
                 &mut |kind, err, bpe, how| {
                     sp.inc(1);
                     progress(&format!(
@@ -146,6 +147,7 @@ pub fn encode(
                     &scaled_samples,
                     max,
                     &cheaper,
+                    encode::estimate_stride(n),
                     &mut |kind, err, bpe, how| {
                         sp.inc(1);
                         progress(&format!(

@@ -316,6 +316,7 @@ pub fn choose(
         b0_samples,
         max_error,
         candidates,
+        estimate_stride(n),
         &mut |_, _, _, _| {},
     )
 }
@@ -323,29 +324,9 @@ pub fn choose(
 /// [`choose`], calling `on_candidate(setting, H error, bytes per entry,
 /// how the error was found)` as each candidate is measured (for progress
 /// output and reports). Candidates far above the bound are rejected on an
-/// estimate ([`ESTIMATE_MARGIN`], stride [`estimate_stride`]).
+/// estimate over 1 row of tiles in `stride` ([`ESTIMATE_MARGIN`]; the
+/// bake passes [`estimate_stride`], 1 measures every candidate in full).
 pub fn choose_with(
-    t: [&[f32]; 3],
-    n: usize,
-    b0_samples: &[[Vec<f32>; 3]],
-    max_error: f64,
-    candidates: &[CodecKind],
-    on_candidate: &mut dyn FnMut(CodecKind, f64, f64, Measured),
-) -> Result<(CodecKind, Encoded, f64), ChooseError> {
-    choose_with_stride(
-        t,
-        n,
-        b0_samples,
-        max_error,
-        candidates,
-        estimate_stride(n),
-        on_candidate,
-    )
-}
-
-/// [`choose_with`] with the estimate's row stride given (1: every
-/// candidate measured in full).
-pub fn choose_with_stride(
     t: [&[f32]; 3],
     n: usize,
     b0_samples: &[[Vec<f32>; 3]],

@@ -10,9 +10,9 @@ pub mod bc4;
 pub mod measure;
 
 pub use measure::{
-    choose, choose_with, choose_with_stride, default_candidates, estimate_stride, exact_products,
-    h_error, h_error_sampled, mat_vec, measure, CodecError, Measured, BLOCK_CODEC_SLACK,
-    ESTIMATE_MARGIN, ESTIMATE_MIN_STRIDE,
+    choose, choose_with, default_candidates, estimate_stride, exact_products, h_error,
+    h_error_sampled, mat_vec, measure, CodecError, Measured, BLOCK_CODEC_SLACK, ESTIMATE_MARGIN,
+    ESTIMATE_MIN_STRIDE,
 };
 
 use bc1::encode_bc1_tile;
