@@ -7,17 +7,20 @@
 
 pub mod bc1;
 pub mod bc4;
+pub mod log_bytes;
 pub mod measure;
 
 pub use measure::{
     choose, choose_with, default_candidates, estimate_stride, exact_products, h_error,
-    h_error_sampled, mat_vec, measure, CodecError, Measured, BLOCK_CODEC_SLACK, ESTIMATE_MARGIN,
-    ESTIMATE_MIN_STRIDE,
+    h_error_estimate, h_error_sampled, mat_vec, measure, CodecError, Estimate, Measured,
+    BLOCK_CODEC_SLACK, ESTIMATE_MARGIN, ESTIMATE_MIN_MARGIN, ESTIMATE_MIN_STRIDE,
+    ESTIMATE_STANDARD_ERRORS,
 };
 
 use bc1::encode_bc1_tile;
 use bc4::encode_bc4_tile;
 use half::f16;
+use log_bytes::LogBytes;
 use radiosity_bakefile::codec::decode::{decode_tile_bytes, log_lut, Codebook};
 use radiosity_bakefile::codec::rgb9e5;
 use radiosity_bakefile::codec::{
@@ -62,15 +65,6 @@ fn pow2_scale(max: f32) -> f32 {
     }
     let e = (max as f64).log2().floor() as i32;
     2f64.powi((14 - e).clamp(-100, 100)) as f32
-}
-
-/// The log byte of a dense value `v ≥ 0` for maximum `m` and range `l`.
-fn log_byte(v: f32, m: f32, l: f32) -> u8 {
-    if !(v > 0.0) || !(m > 0.0) {
-        return 0;
-    }
-    let x = 255.0 / l as f64 * ((v as f64 / m as f64).ln() + l as f64);
-    x.round().clamp(0.0, 255.0) as u8
 }
 
 /// The automatic log range: the smallest `L` that maps the
@@ -167,11 +161,17 @@ fn sparse_key(channels: &[&[f32]], inv_max: &[f32], k: usize) -> u32 {
 /// order) without sorting or storing all keys: a two-level radix select on
 /// the keys' bit patterns (high 16 bits, then low 16), then one pass that
 /// collects the positions row by row. Returns the CSR rows' columns.
-fn select_top(n: usize, count: usize, key: &(dyn Fn(usize) -> u32 + Sync)) -> Vec<Vec<u32>> {
+fn select_top(n: usize, count: usize, key: impl Fn(usize) -> u32 + Sync) -> Vec<Vec<u32>> {
     if count == 0 || n == 0 {
         return vec![Vec::new(); n];
     }
-    let histogram = |select: &(dyn Fn(u32) -> Option<usize> + Sync)| -> Vec<u64> {
+    // A histogram of the bucket `select` puts each key in (generic, so
+    // that the key and the selection inline into the pass over n² entries).
+    fn histogram(
+        n: usize,
+        key: &(impl Fn(usize) -> u32 + Sync),
+        select: impl Fn(u32) -> Option<usize> + Sync,
+    ) -> Vec<u64> {
         (0..n)
             .into_par_iter()
             .fold(
@@ -194,10 +194,10 @@ fn select_top(n: usize, count: usize, key: &(dyn Fn(usize) -> u32 + Sync)) -> Ve
                     a
                 },
             )
-    };
+    }
     // Keys of zero entries are 0 and never selected.
     let count = count as u64;
-    let high = histogram(&|b| (b != 0).then_some((b >> 16) as usize));
+    let high = histogram(n, &key, |b| (b != 0).then_some((b >> 16) as usize));
     let nonzero: u64 = high.iter().sum();
     let count = count.min(nonzero);
     if count == 0 {
@@ -212,7 +212,9 @@ fn select_top(n: usize, count: usize, key: &(dyn Fn(usize) -> u32 + Sync)) -> Ve
         }
         above += high[b];
     }
-    let low = histogram(&|b| (b != 0 && (b >> 16) as usize == hb).then_some((b & 0xffff) as usize));
+    let low = histogram(n, &key, |b| {
+        (b != 0 && (b >> 16) as usize == hb).then_some((b & 0xffff) as usize)
+    });
     let mut lb = 0usize;
     for b in (0..1 << 16).rev() {
         if above + low[b] >= count {
@@ -324,7 +326,7 @@ fn encode_in(
         kind.log_params().unwrap_or((0.0, 0.0, SparseValues::F32));
     let count = (top_fraction * (n * n) as f64).round() as usize;
     let inv_max = radiosity_bakefile::codec::inverse_maxima(&stored);
-    let rows = select_top(n, count, &|k| sparse_key(&stored, &inv_max, k));
+    let rows = select_top(n, count, |k| sparse_key(&stored, &inv_max, k));
     let mut mask = Mask {
         bits: vec![0u64; (n * n).div_ceil(64)],
         n,
@@ -459,6 +461,14 @@ fn encode_in(
         log_range,
         inv_scale: scale.map(|s| 1.0 / s),
     };
+    // The log bytes' thresholds, once per channel (log formats only).
+    let log_bytes: Vec<LogBytes> = if matches!(format, DenseFormat::Bc1 | DenseFormat::Bc4) {
+        (0..ch)
+            .map(|c| LogBytes::new(scale[c], log_range))
+            .collect()
+    } else {
+        Vec::new()
+    };
     let tiles: Vec<(Option<Vec<u8>>, TileCounts)> = (0..tps * tps)
         .into_par_iter()
         .map(|k| {
@@ -468,15 +478,27 @@ fn encode_in(
             }
             let (r0, c0) = (tr * TILE, tc * TILE);
             let (h, w) = (TILE.min(image_size - r0), TILE.min(image_size - c0));
+            // `dense_value` over the tile, a row slice at a time: the
+            // matrix's entries (0 past its edge), sparse positions cleared.
             let mut vals = vec![0.0f32; h * w * ch];
-            for r in 0..h {
-                for c in 0..w {
-                    for k in 0..ch {
-                        vals[(r * w + c) * ch + k] = dense_value(k, r0 + r, c0 + c);
+            let wn = w.min(n.saturating_sub(c0));
+            for r in 0..h.min(n.saturating_sub(r0)) {
+                let (i, out) = (r0 + r, &mut vals[r * w * ch..(r * w + wn) * ch]);
+                for (k, st) in stored.iter().enumerate() {
+                    let src = &st[i * n + c0..i * n + c0 + wn];
+                    for (o, &v) in out.iter_mut().skip(k).step_by(ch).zip(src) {
+                        *o = v;
+                    }
+                }
+                if has_sparse {
+                    for c in 0..wn {
+                        if mask.contains(i, c0 + c) {
+                            out[c * ch..(c + 1) * ch].fill(0.0);
+                        }
                     }
                 }
             }
-            encode_tile(&book, &vals, h, w, &scale)
+            encode_tile(&book, &log_bytes, &vals, h, w)
         })
         .collect();
 
@@ -575,11 +597,12 @@ fn encode_in(
 /// keep.
 fn encode_tile(
     book: &Codebook,
+    log_bytes: &[LogBytes],
     vals: &[f32],
     h: usize,
     w: usize,
-    scale: &[f32; 3],
 ) -> (Option<Vec<u8>>, TileCounts) {
+    let scale = &book.max;
     let ch = book.channels;
     let mut counts = TileCounts::default();
     let bytes = match book.format {
@@ -587,7 +610,7 @@ fn encode_tile(
             let q: Vec<u8> = vals
                 .iter()
                 .enumerate()
-                .map(|(k, &v)| log_byte(v, scale[k % ch], book.log_range))
+                .map(|(k, &v)| log_bytes[k % ch].byte(v))
                 .collect();
             counts.flushed = vals
                 .iter()
