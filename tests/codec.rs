@@ -946,12 +946,13 @@ fn rgb9e5_sparse_values_are_cheaper_at_the_same_error() {
     );
 }
 
-/// The codec choice's estimate (`encode::h_error_sampled`, every
+/// The codec choice's estimate (`encode::h_error_estimate`, every
 /// `stride`-th row of tiles) against the full measure, over every default
 /// candidate on the synthetic room (1,632 patches, 51 rows of tiles): the
-/// estimate stays within `ESTIMATE_MARGIN` of the full error, so no
-/// candidate within the bound is rejected on it, and the choice with the
-/// estimate equals the choice without it.
+/// estimate stays within its own margin (`Estimate::margin`, from its
+/// standard error) of the full error, so no candidate within the bound is
+/// rejected on it, and the choice with the estimate equals the choice
+/// without it.
 #[test]
 fn the_choices_estimate_rejects_only_what_the_full_measure_would() {
     let (patches, t) = room(16, 4);
@@ -974,12 +975,18 @@ fn the_choices_estimate_rejects_only_what_the_full_measure_would() {
         let e = encode::encode(kind, refs(&t), n).unwrap();
         let sampled = encode::encode_sampled(kind, refs(&t), n, stride).unwrap();
         let full = encode::h_error(&e, &reference, &lights);
-        let est = encode::h_error_sampled(&sampled, &reference, &lights, stride);
-        // With stride 1 the estimate is the full measure, bit for bit.
+        let estimate = encode::h_error_estimate(&sampled, &reference, &lights, stride);
+        let est = estimate.error;
         assert_eq!(
-            encode::h_error_sampled(&e, &reference, &lights, 1).to_bits(),
-            full.to_bits()
+            est.to_bits(),
+            encode::h_error_sampled(&sampled, &reference, &lights, stride).to_bits()
         );
+        assert_eq!(estimate.rows, n.div_ceil(codec::TILE).div_ceil(stride));
+        // With stride 1 the estimate is the full measure, bit for bit, with
+        // no sampling error.
+        let whole = encode::h_error_estimate(&e, &reference, &lights, 1);
+        assert_eq!(whole.error.to_bits(), full.to_bits());
+        assert_eq!(whole.std_error, 0.0);
         // The sampled encoding stores the full one's tiles in its rows of
         // tiles, byte for byte, and nothing in the others; only the log
         // formats' mass correction (the scale) may differ.
@@ -1029,11 +1036,21 @@ fn the_choices_estimate_rejects_only_what_the_full_measure_would() {
         }
         if full > 0.0 {
             let r = est / full;
-            eprintln!("{kind}: full {full:.4e}, estimate {est:.4e}, ratio {r:.3}");
+            let margin = estimate.margin();
+            eprintln!(
+                "{kind}: full {full:.4e}, estimate {est:.4e} ± {:.2e}, ratio {r:.3}, margin {margin:.3}",
+                estimate.std_error
+            );
             worst = (worst.0.min(r), worst.1.max(r));
             assert!(
-                r <= encode::ESTIMATE_MARGIN,
-                "{kind}: estimate {r} × the full error"
+                (encode::ESTIMATE_MIN_MARGIN..=encode::ESTIMATE_MARGIN).contains(&margin),
+                "{kind}: margin {margin}"
+            );
+            // Were the bound the full error itself, the estimate would not
+            // reject: no candidate within a bound is rejected on it.
+            assert!(
+                !estimate.rejects(full),
+                "{kind}: estimate {r} × the full error, margin {margin}"
             );
         }
     }

@@ -192,9 +192,9 @@ fn estimated(how: encode::Measured) -> String {
     match how {
         encode::Measured::Full { estimate: None } => String::new(),
         encode::Measured::Full { estimate: Some(e) } => format!(" (estimate {:.3} %)", 100.0 * e),
-        encode::Measured::Estimated { stride } => {
-            format!(" (estimated on 1 row of tiles in {stride}: rejected)")
-        }
+        encode::Measured::Estimated { stride, margin } => format!(
+            " (estimated on 1 row of tiles in {stride}: above {margin:.2} × the bound, rejected)"
+        ),
     }
 }
 
