@@ -191,7 +191,12 @@ pub fn encode(
 fn estimated(how: encode::Measured) -> String {
     match how {
         encode::Measured::Full { estimate: None } => String::new(),
-        encode::Measured::Full { estimate: Some(e) } => format!(" (estimate {:.3} %)", 100.0 * e),
+        encode::Measured::Full { estimate: Some(e) } => format!(
+            " (estimate {:.3} % ± {:.3}, margin {:.2})",
+            100.0 * e.error,
+            100.0 * e.std_error,
+            e.margin()
+        ),
         encode::Measured::Estimated { stride, margin } => format!(
             " (estimated on 1 row of tiles in {stride}: above {margin:.2} × the bound, rejected)"
         ),

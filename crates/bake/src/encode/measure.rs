@@ -1,7 +1,7 @@
 //! Error measures of a compressed matrix (docs/design.md section 3, measure 3)
 //! and the choice of the cheapest codec setting under an error bound.
 
-use super::{encode, encode_sampled, EncodeError};
+use super::{check_matrix, encode_checked, EncodeError};
 use radiosity_bakefile::codec::{CodecKind, Encoded, SparseValues, LOG_RANGE_AUTO};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -41,7 +41,7 @@ pub const ESTIMATE_MARGIN: f64 = 1.5;
 /// The least margin of an estimate ([`Estimate::margin`]), however small
 /// its standard error: what the sampling error does not show, the log
 /// formats' mass correction taken over the sampled tiles instead of all
-/// ([`encode_sampled`]) and the rows of tiles taken in a fixed stride
+/// ([`encode_sampled`](super::encode_sampled)) and the rows of tiles taken in a fixed stride
 /// rather than at random; on Sponza at 12,503 patches the estimate was up
 /// to 1.10 × the full measure.
 pub const ESTIMATE_MIN_MARGIN: f64 = 1.15;
@@ -100,8 +100,8 @@ pub fn estimate_stride(n: usize) -> usize {
 pub enum Measured {
     /// Over every patch ([`h_error`]); `estimate`: the estimate that let it
     /// through to the full measure, where one was made (a running check of
-    /// the estimate, shown in the bake's progress lines).
-    Full { estimate: Option<f64> },
+    /// the estimate and its margin, shown in the bake's progress lines).
+    Full { estimate: Option<Estimate> },
     /// Estimated over every `stride`-th row of tiles ([`h_error_estimate`])
     /// and far enough above the bound to reject the candidate, by more than
     /// `margin` times it ([`Estimate::margin`]).
@@ -400,6 +400,8 @@ pub fn choose_with(
     } else {
         candidates
     };
+    // The matrix is checked once here, not again for each candidate.
+    check_matrix(t, n)?;
     // The exact H of every sample, once; each candidate is measured through
     // its f64 gather, without a decoded n × n copy.
     let reference = exact_products(t, n, b0_samples);
@@ -429,7 +431,7 @@ pub fn choose_with(
         }
         // The estimate: 1 row of tiles in `stride` encoded and gathered.
         let estimate = if stride > 1 {
-            let e = encode_sampled(kind, t, n, stride)?;
+            let e = encode_checked(kind, t, n, stride)?;
             let est = h_error_estimate(&e, &reference, b0_samples, stride);
             if est.rejects(max_error) {
                 let bpe = sampled_bytes_per_entry(&e, stride);
@@ -441,11 +443,11 @@ pub fn choose_with(
                 ));
                 continue;
             }
-            Some(est.error)
+            Some(est)
         } else {
             None
         };
-        let e = encode(kind, t, n)?;
+        let e = encode_checked(kind, t, n, 1)?;
         let err = h_error(&e, &reference, b0_samples);
         on_candidate(kind, err, e.bytes_per_entry(), Measured::Full { estimate });
         tried.push(format!(
@@ -537,7 +539,7 @@ pub fn h_error(e: &Encoded, reference: &[[Vec<f64>; 3]], b0_samples: &[[Vec<f32>
 }
 
 /// The bytes per entry the full encoding of a candidate is expected to
-/// take, from its [`encode_sampled`] form: the dense part and the tile
+/// take, from its [`encode_sampled`](super::encode_sampled) form: the dense part and the tile
 /// index scaled from the rows of tiles encoded to all of them; the sparse
 /// part is already whole.
 fn sampled_bytes_per_entry(e: &Encoded, stride: usize) -> f64 {

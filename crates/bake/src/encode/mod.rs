@@ -304,9 +304,20 @@ fn encode_in(
     n: usize,
     stride: usize,
 ) -> Result<Encoded, EncodeError> {
+    check_matrix(t, n)?;
+    encode_checked(kind, t, n, stride)
+}
+
+/// [`encode_in`] of a matrix [`check_matrix`] has passed: the codec choice
+/// checks its matrix once for all its candidates.
+fn encode_checked(
+    kind: CodecKind,
+    t: [&[f32]; 3],
+    n: usize,
+    stride: usize,
+) -> Result<Encoded, EncodeError> {
     let start = Instant::now();
     kind.validate()?;
-    check_matrix(t, n)?;
     if n > (u16::MAX as usize + 1) * TILE || n * n > u32::MAX as usize {
         return Err(EncodeError::TooManyPatches(n));
     }
