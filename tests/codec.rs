@@ -1089,14 +1089,30 @@ fn the_choices_estimate_rejects_only_what_the_full_measure_would() {
 #[test]
 fn exact_products_equal_one_product_per_sample() {
     let (patches, t) = room(6, 3);
-    let n = patches.len();
     let lights = synthetic::point_lights(&patches, 5, 11);
-    let all = encode::exact_products(refs(&t), n, &lights);
-    assert_eq!(all.len(), lights.len());
-    for (h, b) in all.iter().zip(&lights) {
-        for c in 0..3 {
-            assert_eq!(h[c], encode::mat_vec(&t[c], n, &b[c]), "channel {c}");
+    // The whole matrix and leading blocks of it: sizes that leave every
+    // remainder of the product's blocks of rows.
+    for m in (patches.len() - 8..=patches.len()).rev() {
+        let sub: [Vec<f32>; 3] = std::array::from_fn(|c| {
+            (0..m)
+                .flat_map(|i| t[c][i * patches.len()..i * patches.len() + m].to_vec())
+                .collect()
+        });
+        let sub_lights: Vec<[Vec<f32>; 3]> = lights
+            .iter()
+            .map(|b| std::array::from_fn(|c| b[c][..m].to_vec()))
+            .collect();
+        let all = encode::exact_products(refs(&sub), m, &sub_lights);
+        assert_eq!(all.len(), lights.len());
+        for (h, b) in all.iter().zip(&sub_lights) {
+            for c in 0..3 {
+                assert_eq!(
+                    h[c],
+                    encode::mat_vec(&sub[c], m, &b[c]),
+                    "{m} rows, channel {c}"
+                );
+            }
         }
     }
-    assert!(encode::exact_products(refs(&t), n, &[]).is_empty());
+    assert!(encode::exact_products(refs(&t), patches.len(), &[]).is_empty());
 }
