@@ -3,6 +3,7 @@
 
 use super::{check_matrix, encode_checked, EncodeError};
 use radiosity_bakefile::codec::{CodecKind, Encoded, SparseValues, LOG_RANGE_AUTO};
+use radiosity_core::products::add_products;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -264,13 +265,12 @@ pub fn mat_vec(m: &[f32], n: usize, v: &[f32]) -> Vec<f64> {
 /// The exact `H = T B0` of every sample and channel (f64), as
 /// [`mat_vec`] per sample and channel gives it, the same products summed
 /// in the same order, but each row of `T` read once for all samples: `B0`
-/// is laid out `[column][sample]` so that the innermost loop runs over the
-/// samples. (The one difference from [`mat_vec`] is the sign of an exact
-/// zero sum, which no error measure sees.) Each of the 3 channels streams
-/// its matrix once instead of once per sample: 64 error lights read `T`
-/// 64 times less. `B0` stays f32 (widened to f64 where it is multiplied,
-/// exactly) and [`EXACT_ROWS`] rows share each read of it: the loop is
-/// bound by reading `B0`, not by the arithmetic.
+/// is laid out `[column][sample]` (f32, widened to f64 where it is
+/// multiplied, exactly) and each row's sums run along the row a block of
+/// samples at a time ([`add_products`]). (The one difference from
+/// [`mat_vec`] is the sign of an exact zero sum, which no error measure
+/// sees.) Each of the 3 channels streams its matrix once instead of once
+/// per sample: 64 error lights read `T` 64 times less.
 pub fn exact_products(t: [&[f32]; 3], n: usize, samples: &[[Vec<f32>; 3]]) -> Vec<[Vec<f64>; 3]> {
     let k = samples.len();
     if k == 0 {
@@ -285,57 +285,17 @@ pub fn exact_products(t: [&[f32]; 3], n: usize, samples: &[[Vec<f32>; 3]]) -> Ve
                     vt[j * k + si] = x;
                 }
             }
-            // Row-major n × k: row i's k products, EXACT_ROWS rows a task.
+            // Row-major n × k: row i's k products.
             let mut out = vec![0.0f64; n * k];
-            out.par_chunks_mut(EXACT_ROWS * k)
-                .enumerate()
-                .for_each(|(blk, acc)| {
-                    let i0 = blk * EXACT_ROWS;
-                    let rows = acc.len() / k;
-                    if rows == EXACT_ROWS {
-                        exact_rows::<EXACT_ROWS>(t[c], n, i0, &vt, k, acc);
-                    } else {
-                        for (r, a) in acc.chunks_exact_mut(k).enumerate() {
-                            exact_rows::<1>(t[c], n, i0 + r, &vt, k, a);
-                        }
-                    }
-                });
+            out.par_chunks_mut(k).enumerate().for_each(|(i, acc)| {
+                add_products(acc, &t[c][i * n..(i + 1) * n], 1, &vt, k, n);
+            });
             out
         })
         .collect();
     (0..k)
         .map(|si| std::array::from_fn(|c| (0..n).map(|i| per_channel[c][i * k + si]).collect()))
         .collect()
-}
-
-/// Rows of `T` that [`exact_products`] multiplies together, each value of
-/// `B0` read once for all of them: 8 rows and an f32 `B0` took 0.54 × the
-/// time of one row and an f64 `B0` on 64 rows of 12,500 columns and 64
-/// lights (one thread), and the whole product 0.69 × at 4,096 patches (2
-/// threads, the same bits), on this machine.
-const EXACT_ROWS: usize = 8;
-
-/// `acc[r k + s] += T[i0 + r][j] · B0_s[j]` over the columns `j` in
-/// order, for `R` rows: each accumulator sums its products in column
-/// order, as [`mat_vec`] does.
-#[inline(always)]
-fn exact_rows<const R: usize>(
-    t: &[f32],
-    n: usize,
-    i0: usize,
-    vt: &[f32],
-    k: usize,
-    acc: &mut [f64],
-) {
-    for (j, v) in vt.chunks_exact(k).enumerate() {
-        let x: [f64; R] = std::array::from_fn(|r| t[(i0 + r) * n + j] as f64);
-        for (q, &b) in v.iter().enumerate() {
-            let b = b as f64;
-            for r in 0..R {
-                acc[r * k + q] += x[r] * b;
-            }
-        }
-    }
 }
 
 /// The candidates [`choose`] tries by default: BC1-log with the automatic

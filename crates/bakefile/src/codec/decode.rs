@@ -5,19 +5,10 @@
 
 use super::{DenseFormat, Encoded};
 use half::f16;
+// What the gathers accumulate in: f32 (as the run time) or f64 (error
+// measures).
+use radiosity_core::products::{add_products, Accumulator};
 use rayon::prelude::*;
-
-/// What the gathers accumulate in: f32 (as the run time) or f64 (error
-/// measures).
-trait Accumulator:
-    Copy + Default + Send + Sync + std::ops::AddAssign + std::ops::Mul<Output = Self> + From<f32>
-{
-}
-
-impl<A> Accumulator for A where
-    A: Copy + Default + Send + Sync + std::ops::AddAssign + std::ops::Mul<Output = A> + From<f32>
-{
-}
 
 impl Encoded {
     /// The matrix as the run time sees it (see [`decode`]).
@@ -120,14 +111,16 @@ impl Encoded {
         let ch = self.channels;
         // B0 converted once and laid out [column][channel][sample], so that
         // each decoded entry meets every sample's value in one contiguous
-        // run (the innermost loop vectorises over the samples). Each
-        // accumulator still sums its terms in the same order as a single
-        // gather: tiles in column order, columns within a tile in order.
-        let mut b0t = vec![A::default(); n * 3 * k];
+        // run ([`add_products`] runs along a tile's row with a block of
+        // samples' sums in registers). Each accumulator still sums its
+        // terms in the same order as a single gather: tiles in column
+        // order, columns within a tile in order. B0 stays f32, widened
+        // where it is multiplied (exactly).
+        let mut b0t = vec![0.0f32; n * 3 * k];
         for (si, b0) in b0s.iter().enumerate() {
             for (oc, b) in b0.iter().enumerate() {
                 for (j, &x) in b.iter().enumerate() {
-                    b0t[(j * 3 + oc) * k + si] = A::from(x);
+                    b0t[(j * 3 + oc) * k + si] = x;
                 }
             }
         }
@@ -144,20 +137,17 @@ impl Encoded {
                 let mut buf = vec![0.0f32; tile * tile * ch];
                 self.each_tile_of_row(&book, tr, &mut buf, |t, buf| {
                     for (r, acc_r) in acc.chunks_exact_mut(3 * k).enumerate().take(t.rows) {
-                        for c in 0..t.cols {
-                            let v = &buf[(r * t.w + c) * ch..(r * t.w + c + 1) * ch];
-                            let j = t.c0 + c;
-                            let bj = &b0t[j * 3 * k..(j + 1) * 3 * k];
-                            for (oc, (a, b)) in acc_r
-                                .chunks_exact_mut(k)
-                                .zip(bj.chunks_exact(k))
-                                .enumerate()
-                            {
-                                let x = A::from(v[oc.min(ch - 1)]);
-                                for (a, &b) in a.iter_mut().zip(b) {
-                                    *a += x * b;
-                                }
-                            }
+                        for (oc, a) in acc_r.chunks_exact_mut(k).enumerate() {
+                            // The row's texels of channel `oc` along the
+                            // tile, against the columns' samples.
+                            add_products(
+                                a,
+                                &buf[r * t.w * ch + oc.min(ch - 1)..],
+                                ch,
+                                &b0t[t.c0 * 3 * k + oc * k..],
+                                3 * k,
+                                t.cols,
+                            );
                         }
                     }
                 });
