@@ -25,46 +25,45 @@ impl<A> Accumulator for A where
 /// matrix (AVX2, this machine; 16: 0.61 ×; SSE2 only, 16: 0.83 ×).
 pub const SAMPLE_BLOCK: usize = 32;
 
+/// A run of columns along one row: the row's value of column `c` is
+/// `x[c · stride_x]`, the column's samples start at `b[c · stride_b]`.
+#[derive(Clone, Copy, Debug)]
+pub struct Run<'a> {
+    pub x: &'a [f32],
+    pub stride_x: usize,
+    pub b: &'a [f32],
+    pub stride_b: usize,
+    pub cols: usize,
+}
+
 /// `acc[q] += x[c · stride_x] · b[c · stride_b + q]` for every sample `q`
-/// of `acc` (any length) and column `c < cols`, in column order per
-/// sample: `x` holds the run's values of one row, `b` the columns' sample
-/// values. Blocks of [`SAMPLE_BLOCK`] samples run with their accumulators
+/// of `acc` (any length) and column `c` of the run, in column order per
+/// sample. Blocks of [`SAMPLE_BLOCK`] samples run with their accumulators
 /// in registers, on AVX2 where the processor has it.
-pub fn add_products<A: Accumulator>(
-    acc: &mut [A],
-    x: &[f32],
-    stride_x: usize,
-    b: &[f32],
-    stride_b: usize,
-    cols: usize,
-) {
-    if cols == 0 {
+pub fn add_products<A: Accumulator>(acc: &mut [A], run: Run) {
+    if run.cols == 0 {
         return;
     }
     assert!(
-        x.len() > (cols - 1) * stride_x,
+        run.x.len() > (run.cols - 1) * run.stride_x,
         "x holds every column's value"
     );
     assert!(
-        b.len() >= (cols - 1) * stride_b + acc.len(),
+        run.b.len() >= (run.cols - 1) * run.stride_b + acc.len(),
         "b holds every column's samples"
     );
     let mut q = 0;
     while q < acc.len() {
         let len = SAMPLE_BLOCK.min(acc.len() - q);
-        let (a, bq) = (&mut acc[q..q + len], &b[q..]);
+        let from = |s: usize| Run {
+            b: &run.b[s..],
+            ..run
+        };
         if len == SAMPLE_BLOCK {
-            block_dispatch::<A, SAMPLE_BLOCK>(a, x, stride_x, bq, stride_b, cols);
+            block_dispatch::<A, SAMPLE_BLOCK>(&mut acc[q..q + len], from(q));
         } else {
-            for (s, a) in a.iter_mut().enumerate() {
-                block::<A, 1>(
-                    std::slice::from_mut(a),
-                    x,
-                    stride_x,
-                    &bq[s..],
-                    stride_b,
-                    cols,
-                );
+            for (s, a) in acc[q..].iter_mut().enumerate() {
+                block::<A, 1>(std::slice::from_mut(a), from(q + s));
             }
         }
         q += len;
@@ -73,24 +72,17 @@ pub fn add_products<A: Accumulator>(
 
 /// [`block`] with AVX2 where the processor has it.
 #[inline(always)]
-fn block_dispatch<A: Accumulator, const S: usize>(
-    acc: &mut [A],
-    x: &[f32],
-    stride_x: usize,
-    b: &[f32],
-    stride_b: usize,
-    cols: usize,
-) {
+fn block_dispatch<A: Accumulator, const S: usize>(acc: &mut [A], run: Run) {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the processor has AVX2 (checked just above), the one
             // requirement of `block_avx2`.
-            unsafe { block_avx2::<A, S>(acc, x, stride_x, b, stride_b, cols) };
+            unsafe { block_avx2::<A, S>(acc, run) };
             return;
         }
     }
-    block::<A, S>(acc, x, stride_x, b, stride_b, cols)
+    block::<A, S>(acc, run)
 }
 
 /// [`block`] compiled for AVX2: four f64 (eight f32) per instruction.
@@ -99,32 +91,18 @@ fn block_dispatch<A: Accumulator, const S: usize>(
 /// The processor must have AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn block_avx2<A: Accumulator, const S: usize>(
-    acc: &mut [A],
-    x: &[f32],
-    stride_x: usize,
-    b: &[f32],
-    stride_b: usize,
-    cols: usize,
-) {
-    block::<A, S>(acc, x, stride_x, b, stride_b, cols)
+unsafe fn block_avx2<A: Accumulator, const S: usize>(acc: &mut [A], run: Run) {
+    block::<A, S>(acc, run)
 }
 
 /// `S` samples along the run, their sums held in a local array (registers)
 /// and stored once at the end.
 #[inline(always)]
-fn block<A: Accumulator, const S: usize>(
-    acc: &mut [A],
-    x: &[f32],
-    stride_x: usize,
-    b: &[f32],
-    stride_b: usize,
-    cols: usize,
-) {
+fn block<A: Accumulator, const S: usize>(acc: &mut [A], run: Run) {
     let mut sum: [A; S] = std::array::from_fn(|q| acc[q]);
-    for c in 0..cols {
-        let xc = A::from(x[c * stride_x]);
-        let bc = &b[c * stride_b..c * stride_b + S];
+    for c in 0..run.cols {
+        let xc = A::from(run.x[c * run.stride_x]);
+        let bc = &run.b[c * run.stride_b..c * run.stride_b + S];
         for q in 0..S {
             sum[q] += xc * A::from(bc[q]);
         }
@@ -138,17 +116,10 @@ mod tests {
 
     /// The plain loop: one multiply-add per sample and column, in column
     /// order.
-    fn plain<A: Accumulator>(
-        acc: &mut [A],
-        x: &[f32],
-        stride_x: usize,
-        b: &[f32],
-        stride_b: usize,
-        cols: usize,
-    ) {
-        for c in 0..cols {
+    fn plain<A: Accumulator>(acc: &mut [A], run: Run) {
+        for c in 0..run.cols {
             for (q, a) in acc.iter_mut().enumerate() {
-                *a += A::from(x[c * stride_x]) * A::from(b[c * stride_b + q]);
+                *a += A::from(run.x[c * run.stride_x]) * A::from(run.b[c * run.stride_b + q]);
             }
         }
     }
@@ -176,15 +147,22 @@ mod tests {
                 let x: Vec<f32> = (0..cols * stride_x).map(|_| rnd()).collect();
                 let b: Vec<f32> = (0..cols * stride_b).map(|_| rnd()).collect();
                 let start: Vec<f64> = (0..samples).map(|_| rnd() as f64).collect();
+                let run = Run {
+                    x: &x,
+                    stride_x,
+                    b: &b,
+                    stride_b,
+                    cols,
+                };
                 let (mut got, mut want) = (start.clone(), start.clone());
-                add_products(&mut got, &x, stride_x, &b, stride_b, cols);
-                plain(&mut want, &x, stride_x, &b, stride_b, cols);
+                add_products(&mut got, run);
+                plain(&mut want, run);
                 let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 assert_eq!(bits(&got), bits(&want), "{samples} samples, {cols} columns");
                 let mut got32: Vec<f32> = start.iter().map(|&v| v as f32).collect();
                 let mut want32 = got32.clone();
-                add_products(&mut got32, &x, stride_x, &b, stride_b, cols);
-                plain(&mut want32, &x, stride_x, &b, stride_b, cols);
+                add_products(&mut got32, run);
+                plain(&mut want32, run);
                 assert_eq!(
                     got32.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
                     want32.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
@@ -196,7 +174,14 @@ mod tests {
     #[test]
     fn no_columns_change_nothing() {
         let mut acc = vec![1.5f64; 40];
-        add_products(&mut acc, &[], 1, &[], 40, 0);
+        let run = Run {
+            x: &[],
+            stride_x: 1,
+            b: &[],
+            stride_b: 40,
+            cols: 0,
+        };
+        add_products(&mut acc, run);
         assert!(acc.iter().all(|&a| a == 1.5));
     }
 }

@@ -3,7 +3,7 @@
 
 use super::{check_matrix, encode_checked, EncodeError};
 use radiosity_bakefile::codec::{CodecKind, Encoded, SparseValues, LOG_RANGE_AUTO};
-use radiosity_core::products::add_products;
+use radiosity_core::products::{add_products, Run};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -288,7 +288,14 @@ pub fn exact_products(t: [&[f32]; 3], n: usize, samples: &[[Vec<f32>; 3]]) -> Ve
             // Row-major n × k: row i's k products.
             let mut out = vec![0.0f64; n * k];
             out.par_chunks_mut(k).enumerate().for_each(|(i, acc)| {
-                add_products(acc, &t[c][i * n..(i + 1) * n], 1, &vt, k, n);
+                let run = Run {
+                    x: &t[c][i * n..(i + 1) * n],
+                    stride_x: 1,
+                    b: &vt,
+                    stride_b: k,
+                    cols: n,
+                };
+                add_products(acc, run);
             });
             out
         })
@@ -516,23 +523,8 @@ pub fn expected_bytes_per_entry(kind: CodecKind) -> f64 {
 /// (`T B0` per sample and channel, e.g. from [`mat_vec`]), pooled over all
 /// samples, channels and patches as in [`CodecError::rel_rms_h`].
 pub fn h_error(e: &Encoded, reference: &[[Vec<f64>; 3]], b0_samples: &[[Vec<f32>; 3]]) -> f64 {
-    let (mut d2, mut r2) = (0.0f64, 0.0f64);
-    // All samples in one pass over the matrix (each tile decoded once);
-    // in groups, so that the accumulators of a row of tiles stay small.
-    let mut gathered = Vec::with_capacity(b0_samples.len());
-    for group in b0_samples.chunks(64) {
-        let b0s: Vec<[&[f32]; 3]> = group.iter().map(|b| [&b[0][..], &b[1], &b[2]]).collect();
-        gathered.extend(e.gather_many_f64(&b0s));
-    }
-    for (h, g) in reference.iter().zip(&gathered) {
-        for c in 0..3 {
-            for (a, b) in h[c].iter().zip(&g[c]) {
-                d2 += (b - a) * (b - a);
-                r2 += a * a;
-            }
-        }
-    }
-    ratio(d2.sqrt(), r2.sqrt())
+    // Every row of tiles: the estimate is the full measure.
+    h_error_estimate(e, reference, b0_samples, 1).error
 }
 
 /// The bytes per entry the full encoding of a candidate is expected to
@@ -552,7 +544,7 @@ fn sampled_bytes_per_entry(e: &Encoded, stride: usize) -> f64 {
 /// [`h_error`] over every `stride`-th row of tiles only
 /// ([`Encoded::gather_many_f64_sampled`]): the estimate the codec choice
 /// rejects candidates on ([`h_error_estimate`], which also gives its
-/// standard error). With stride 1 it is [`h_error`], bit for bit.
+/// standard error). With stride 1 it is [`h_error`].
 pub fn h_error_sampled(
     e: &Encoded,
     reference: &[[Vec<f64>; 3]],
@@ -580,9 +572,11 @@ pub fn h_error_estimate(
     let tile = e.index.tile.max(1);
     let rows_of_tiles = e.n.div_ceil(tile);
     let (mut d2, mut r2) = (0.0f64, 0.0f64);
-    // Per row of tiles, for the spread (the totals above keep h_error's
-    // order of summation).
+    // Per row of tiles, for the spread (the totals keep the order of
+    // summation over patches, samples and channels).
     let (mut dt, mut rt) = (vec![0.0f64; rows_of_tiles], vec![0.0f64; rows_of_tiles]);
+    // All samples in one pass over the matrix (each tile decoded once);
+    // in groups, so that the accumulators of a row of tiles stay small.
     let mut gathered = Vec::with_capacity(b0_samples.len());
     for group in b0_samples.chunks(64) {
         let b0s: Vec<[&[f32]; 3]> = group.iter().map(|b| [&b[0][..], &b[1], &b[2]]).collect();

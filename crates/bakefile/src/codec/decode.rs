@@ -7,7 +7,7 @@ use super::{DenseFormat, Encoded};
 use half::f16;
 // What the gathers accumulate in: f32 (as the run time) or f64 (error
 // measures).
-use radiosity_core::products::{add_products, Accumulator};
+use radiosity_core::products::{add_products, Accumulator, Run};
 use rayon::prelude::*;
 
 impl Encoded {
@@ -140,14 +140,14 @@ impl Encoded {
                         for (oc, a) in acc_r.chunks_exact_mut(k).enumerate() {
                             // The row's texels of channel `oc` along the
                             // tile, against the columns' samples.
-                            add_products(
-                                a,
-                                &buf[r * t.w * ch + oc.min(ch - 1)..],
-                                ch,
-                                &b0t[t.c0 * 3 * k + oc * k..],
-                                3 * k,
-                                t.cols,
-                            );
+                            let run = Run {
+                                x: &buf[r * t.w * ch + oc.min(ch - 1)..],
+                                stride_x: ch,
+                                b: &b0t[t.c0 * 3 * k + oc * k..],
+                                stride_b: 3 * k,
+                                cols: t.cols,
+                            };
+                            add_products(a, run);
                         }
                     }
                 });
