@@ -20,8 +20,9 @@ pub fn log_byte(v: f32, m: f32, l: f32) -> u8 {
 /// it, which no comparison passes), so the byte of `v > 0` is the number
 /// of thresholds at or below `v`. A table on the top 16 bits of `v`'s
 /// pattern (exponent and 8 mantissa bits, a bucket 1/256 of an octave
-/// wide, under one byte level for any range ≥ 1) gives the byte of the
-/// bucket's lowest value; one or two comparisons finish it.
+/// wide, under one byte level for any range ≥ 1, the automatic range's
+/// least) gives the byte of the bucket's lowest value; a comparison or
+/// two finish it (more for a range set below 1, still exact).
 ///
 /// This equals [`log_byte`] for every f32 because the byte never decreases
 /// as `v` grows: `v/m` is a correctly rounded division, `ln` is monotonic
@@ -44,7 +45,8 @@ impl LogBytes {
     /// The thresholds and table of maximum `m` and range `l`.
     pub fn new(m: f32, l: f32) -> LogBytes {
         // The positive f32 bit patterns, 1 (the smallest subnormal) to
-        // +∞, where the byte is 255 for any m > 0 and range ≥ 1.
+        // +∞, where the byte is 255 for any m > 0 and range > 0 (the
+        // codec's settings refuse a negative range).
         const INF: u32 = 0x7f80_0000;
         let mut thresholds = [f32::NAN; 255];
         if m > 0.0 {
@@ -100,11 +102,12 @@ mod tests {
     use super::*;
 
     /// Maxima and ranges like the encoder's (the automatic range is
-    /// clamped to [1, 30]; the thesis's is 25), maxima from tiny to huge.
+    /// clamped to [1, 30]; the thesis's is 25; a set one may be any
+    /// positive value), maxima from tiny to huge.
     fn settings() -> Vec<(f32, f32)> {
         let mut v = Vec::new();
         for &m in &[1e-30f32, 3.7e-9, 0.0123, 1.0, 0.9999999, 7.5e4, 3.0e30] {
-            for &l in &[1.0f32, 2.5, 5.3, 12.0, 25.0, 30.0] {
+            for &l in &[0.05f32, 1.0, 2.5, 5.3, 12.0, 25.0, 30.0, 200.0] {
                 v.push((m, l));
             }
         }
