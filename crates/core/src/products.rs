@@ -21,8 +21,9 @@ impl<A> Accumulator for A where
 
 /// Samples whose accumulators [`add_products`] keeps in registers: 32
 /// took 0.51 × the time of one multiply-add per sample and column, loaded
-/// and stored, in the gather of 64 samples through a 4,096-patch BC1
-/// matrix (AVX2, this machine; 16: 0.61 ×; SSE2 only, 16: 0.83 ×).
+/// and stored, in the gather of 64 samples through the BC1 encoding of a
+/// synthetic banded 4,096² matrix (AVX2, this machine; 16: 0.61 ×; SSE2
+/// only, 16: 0.83 ×).
 pub const SAMPLE_BLOCK: usize = 32;
 
 /// A run of columns along one row: the row's value of column `c` is
