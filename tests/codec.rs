@@ -574,12 +574,22 @@ fn check_accepts_encodings_and_catches_corruption() {
         let e = encode::encode(kind, refs(&t), n).unwrap();
         e.check().unwrap();
         // The error measure's one-pass gather over many B0 is the f64
-        // gather of each, bit for bit.
-        let b1: [Vec<f32>; 3] =
-            std::array::from_fn(|c| b0[c].iter().map(|&v| 0.5 * v + 0.125 * c as f32).collect());
-        let many = e.gather_many_f64(&[refs(&b0), refs(&b1)]);
-        assert_eq!(many[0], e.gather_f64(refs(&b0)), "{kind}");
-        assert_eq!(many[1], e.gather_f64(refs(&b1)), "{kind}");
+        // gather of each, bit for bit: 40 of them, a block of 32 samples
+        // summed in registers (`core::products`) and 8 one at a time.
+        let bs: Vec<[Vec<f32>; 3]> = (0..40)
+            .map(|s| {
+                std::array::from_fn(|c| {
+                    b0[c]
+                        .iter()
+                        .map(|&v| v / (1 + s) as f32 + 0.125 * (c + s % 3) as f32)
+                        .collect()
+                })
+            })
+            .collect();
+        let many = e.gather_many_f64(&bs.iter().map(refs).collect::<Vec<_>>());
+        for (s, b) in bs.iter().enumerate() {
+            assert_eq!(many[s], e.gather_f64(refs(b)), "{kind}: B0 {s}");
+        }
         let mut bad = e.clone();
         bad.dense.truncate(bad.dense.len() - 1);
         assert!(bad.check().is_err(), "{kind}: truncated dense part");
@@ -1094,10 +1104,11 @@ fn the_choices_estimate_rejects_only_what_the_full_measure_would() {
 #[test]
 fn exact_products_equal_one_product_per_sample() {
     let (patches, t) = room(6, 3);
-    let lights = synthetic::point_lights(&patches, 5, 11);
-    // The whole matrix and leading blocks of it: sizes that leave every
-    // remainder of the product's blocks of rows.
-    for m in (patches.len() - 8..=patches.len()).rev() {
+    // 40 lights: a block of 32 samples summed in registers
+    // (`core::products`) and 8 one at a time; the whole matrix and a
+    // leading block of it.
+    let lights = synthetic::point_lights(&patches, 40, 11);
+    for m in [patches.len(), patches.len() - 5] {
         let sub: [Vec<f32>; 3] = std::array::from_fn(|c| {
             (0..m)
                 .flat_map(|i| t[c][i * patches.len()..i * patches.len() + m].to_vec())

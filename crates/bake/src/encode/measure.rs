@@ -598,14 +598,12 @@ pub fn h_error_estimate(
     let error = ratio(d2.sqrt(), r2.sqrt());
     let sampled: Vec<usize> = (0..rows_of_tiles).step_by(stride).collect();
     let m = sampled.len();
-    let std_error = if m < 2 || m >= rows_of_tiles || !(r2 > 0.0) || !error.is_finite() {
-        // Every row sampled (the full measure), or too few to show a
-        // spread (then the margin's upper bound applies).
-        if m >= rows_of_tiles {
-            0.0
-        } else {
-            f64::INFINITY
-        }
+    let std_error = if m >= rows_of_tiles || error == 0.0 {
+        // Every row sampled (the full measure), or no error to spread.
+        0.0
+    } else if m < 2 || !(r2 > 0.0) || !error.is_finite() {
+        // Too few rows to show a spread: the margin's upper bound applies.
+        f64::INFINITY
     } else {
         let rhat = d2 / r2;
         let rbar = r2 / m as f64;
@@ -615,11 +613,7 @@ pub fn h_error_estimate(
             .sum();
         let fpc = 1.0 - m as f64 / rows_of_tiles as f64;
         let var = fpc * ss / (m as f64 * (m as f64 - 1.0) * rbar * rbar);
-        if error > 0.0 {
-            var.sqrt() / (2.0 * error)
-        } else {
-            0.0
-        }
+        var.sqrt() / (2.0 * error)
     };
     Estimate {
         error,
