@@ -1,7 +1,8 @@
 //! Error measures of a compressed matrix (docs/design.md section 3, measure 3)
 //! and the choice of the cheapest codec setting under an error bound.
 
-use super::{check_matrix, encode_checked, EncodeError};
+use super::prepared::Prepared;
+use super::{encode_prepared, sparse_count, EncodeError};
 use radiosity_bakefile::codec::{CodecKind, Encoded, SparseValues, LOG_RANGE_AUTO};
 use radiosity_core::products::{add_products, Run};
 use rayon::prelude::*;
@@ -404,8 +405,15 @@ pub fn choose_with(
     } else {
         candidates
     };
-    // The matrix is checked once here, not again for each candidate.
-    check_matrix(t, n)?;
+    // The matrix is checked and prepared once here, not again for each
+    // candidate: the sparse thresholds of all of them in one pass.
+    let prepared = Prepared::new(t, n)?;
+    prepared.prepare(
+        &candidates
+            .iter()
+            .map(|&k| sparse_count(k, n))
+            .collect::<Vec<_>>(),
+    );
     // The exact H of every sample, once; each candidate is measured through
     // its f64 gather, without a decoded n × n copy.
     let reference = exact_products(t, n, b0_samples);
@@ -435,7 +443,7 @@ pub fn choose_with(
         }
         // The estimate: 1 row of tiles in `stride` encoded and gathered.
         let estimate = if stride > 1 {
-            let e = encode_checked(kind, t, n, stride)?;
+            let e = encode_prepared(kind, &prepared, stride)?;
             let est = h_error_estimate(&e, &reference, b0_samples, stride);
             if est.rejects(max_error) {
                 let bpe = sampled_bytes_per_entry(&e, stride);
@@ -451,7 +459,7 @@ pub fn choose_with(
         } else {
             None
         };
-        let e = encode_checked(kind, t, n, 1)?;
+        let e = encode_prepared(kind, &prepared, 1)?;
         let err = h_error(&e, &reference, b0_samples);
         on_candidate(kind, err, e.bytes_per_entry(), Measured::Full { estimate });
         tried.push(format!(

@@ -9,6 +9,7 @@ pub mod bc1;
 pub mod bc4;
 pub mod log_bytes;
 pub mod measure;
+mod prepared;
 
 pub use measure::{
     choose, choose_with, default_candidates, estimate_stride, exact_products, h_error,
@@ -21,11 +22,12 @@ use bc1::encode_bc1_tile;
 use bc4::encode_bc4_tile;
 use half::f16;
 use log_bytes::LogBytes;
+use prepared::Prepared;
 use radiosity_bakefile::codec::decode::{decode_tile_bytes, log_lut, Codebook};
 use radiosity_bakefile::codec::rgb9e5;
 use radiosity_bakefile::codec::{
-    distinct_channels, CodecKind, CodecSettingError, DenseFormat, EncodeStats, Encoded, Sparse,
-    SparseValues, TileIndex, AUTO_FLUSH_QUANTILE, LOG_RANGE_AUTO, TILE,
+    CodecKind, CodecSettingError, DenseFormat, EncodeStats, Encoded, Sparse, SparseValues,
+    TileIndex, AUTO_FLUSH_QUANTILE, LOG_RANGE_AUTO, TILE,
 };
 use rayon::prelude::*;
 use std::time::Instant;
@@ -87,9 +89,10 @@ pub fn auto_log_range(
         if !(m > 0.0) {
             continue;
         }
-        let mut sample: Vec<f32> = (0..total)
-            .step_by(stride)
-            .map(|k| dense(c, k / n, k % n))
+        // In parallel, in order: the same sample as a loop's.
+        let mut sample: Vec<f32> = (0..total.div_ceil(stride))
+            .into_par_iter()
+            .map(|s| dense(c, s * stride / n, s * stride % n))
             .filter(|&v| v > 0.0)
             .collect();
         if sample.is_empty() {
@@ -103,35 +106,11 @@ pub fn auto_log_range(
     l.clamp(1.0, 30.0) as f32
 }
 
-/// Checks sizes and values: every entry finite and non-negative.
-fn check_matrix(t: [&[f32]; 3], n: usize) -> Result<(), EncodeError> {
-    for (c, ch) in t.iter().enumerate() {
-        if ch.len() != n * n {
-            return Err(EncodeError::Size {
-                channel: c,
-                len: ch.len(),
-                n,
-            });
-        }
-        let bad = |v: &f32| !(v.is_finite() && *v >= 0.0);
-        let row = ch
-            .par_chunks(n.max(1))
-            .position_first(|r| r.iter().any(bad));
-        if let Some(p) = row.and_then(|i| {
-            ch[i * n..(i + 1) * n]
-                .iter()
-                .position(bad)
-                .map(|j| i * n + j)
-        }) {
-            return Err(EncodeError::Entry {
-                row: p / n,
-                col: p % n,
-                channel: c,
-                value: ch[p],
-            });
-        }
-    }
-    Ok(())
+/// The entries a setting keeps in its sparse part: its top fraction of the
+/// `n²`, rounded (0 for the formats without one).
+fn sparse_count(kind: CodecKind, n: usize) -> usize {
+    let top_fraction = kind.log_params().map_or(0.0, |p| p.0);
+    (top_fraction * (n * n) as f64).round() as usize
 }
 
 /// Positions of the sparse part as a bitset over the n² entries.
@@ -145,120 +124,6 @@ impl Mask {
         let k = i * self.n + j;
         self.bits[k / 64] >> (k % 64) & 1 == 1
     }
-}
-
-/// The sparse ranking key of an entry: `Σ_c t_c / max_c` (f32, fixed
-/// order), as its bit pattern (monotonic for non-negative floats).
-fn sparse_key(channels: &[&[f32]], inv_max: &[f32], k: usize) -> u32 {
-    let mut s = 0.0f32;
-    for (ch, &im) in channels.iter().zip(inv_max) {
-        s += ch[k] * im;
-    }
-    s.to_bits()
-}
-
-/// Selects the top `count` positions by [`sparse_key`] (ties in row-major
-/// order) without sorting or storing all keys: a two-level radix select on
-/// the keys' bit patterns (high 16 bits, then low 16), then one pass that
-/// collects the positions row by row. Returns the CSR rows' columns.
-fn select_top(n: usize, count: usize, key: impl Fn(usize) -> u32 + Sync) -> Vec<Vec<u32>> {
-    if count == 0 || n == 0 {
-        return vec![Vec::new(); n];
-    }
-    // A histogram of the bucket `select` puts each key in (generic, so
-    // that the key and the selection inline into the pass over n² entries).
-    fn histogram(
-        n: usize,
-        key: &(impl Fn(usize) -> u32 + Sync),
-        select: impl Fn(u32) -> Option<usize> + Sync,
-    ) -> Vec<u64> {
-        (0..n)
-            .into_par_iter()
-            .fold(
-                || vec![0u64; 1 << 16],
-                |mut h, i| {
-                    for k in i * n..(i + 1) * n {
-                        if let Some(b) = select(key(k)) {
-                            h[b] += 1;
-                        }
-                    }
-                    h
-                },
-            )
-            .reduce(
-                || vec![0u64; 1 << 16],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(b) {
-                        *x += y;
-                    }
-                    a
-                },
-            )
-    }
-    // Keys of zero entries are 0 and never selected.
-    let count = count as u64;
-    let high = histogram(n, &key, |b| (b != 0).then_some((b >> 16) as usize));
-    let nonzero: u64 = high.iter().sum();
-    let count = count.min(nonzero);
-    if count == 0 {
-        return vec![Vec::new(); n];
-    }
-    // The bucket where the running count from the top reaches `count`.
-    let (mut above, mut hb) = (0u64, 0usize);
-    for b in (0..1 << 16).rev() {
-        if above + high[b] >= count {
-            hb = b;
-            break;
-        }
-        above += high[b];
-    }
-    let low = histogram(n, &key, |b| {
-        (b != 0 && (b >> 16) as usize == hb).then_some((b & 0xffff) as usize)
-    });
-    let mut lb = 0usize;
-    for b in (0..1 << 16).rev() {
-        if above + low[b] >= count {
-            lb = b;
-            break;
-        }
-        above += low[b];
-    }
-    let threshold = ((hb as u32) << 16) | lb as u32;
-    // `above` keys are > threshold; `count − above` ties are taken in
-    // row-major order.
-    let ties_wanted = count - above;
-    let ties_per_row: Vec<u64> = (0..n)
-        .into_par_iter()
-        .map(|i| {
-            (i * n..(i + 1) * n)
-                .filter(|&k| key(k) == threshold)
-                .count() as u64
-        })
-        .collect();
-    let mut ties_allowed = vec![0u64; n];
-    let mut left = ties_wanted;
-    for i in 0..n {
-        let t = ties_per_row[i].min(left);
-        ties_allowed[i] = t;
-        left -= t;
-    }
-    (0..n)
-        .into_par_iter()
-        .map(|i| {
-            let mut ties = ties_allowed[i];
-            let mut cols = Vec::new();
-            for j in 0..n {
-                let b = key(i * n + j);
-                if b > threshold || (b == threshold && ties > 0) {
-                    if b == threshold {
-                        ties -= 1;
-                    }
-                    cols.push(j as u32);
-                }
-            }
-            cols
-        })
-        .collect()
 }
 
 /// Per-tile counts gathered while encoding.
@@ -304,24 +169,18 @@ fn encode_in(
     n: usize,
     stride: usize,
 ) -> Result<Encoded, EncodeError> {
-    check_matrix(t, n)?;
-    encode_checked(kind, t, n, stride)
+    let prepared = Prepared::new(t, n)?;
+    encode_prepared(kind, &prepared, stride)
 }
 
-/// [`encode_in`] of a matrix [`check_matrix`] has passed: the codec choice
-/// checks its matrix once for all its candidates.
-fn encode_checked(
-    kind: CodecKind,
-    t: [&[f32]; 3],
-    n: usize,
-    stride: usize,
-) -> Result<Encoded, EncodeError> {
+/// [`encode_in`] of a checked matrix with what every encoding of it shares
+/// ([`Prepared`]): the codec choice checks and prepares its matrix once for
+/// all its candidates.
+fn encode_prepared(kind: CodecKind, p: &Prepared, stride: usize) -> Result<Encoded, EncodeError> {
     let start = Instant::now();
     kind.validate()?;
-    if n > (u16::MAX as usize + 1) * TILE || n * n > u32::MAX as usize {
-        return Err(EncodeError::TooManyPatches(n));
-    }
-    let distinct = distinct_channels(t);
+    let (t, n) = (p.t, p.n);
+    let distinct = &p.distinct;
     let grey = distinct.len() == 1;
     let format = DenseFormat::of(kind, distinct.len());
     // BC6H always stores RGB; the others store the distinct channels.
@@ -332,28 +191,20 @@ fn encode_checked(
     };
     let ch = stored.len();
 
-    // The sparse part (log formats).
-    let (top_fraction, log_range, sparse_values) =
-        kind.log_params().unwrap_or((0.0, 0.0, SparseValues::F32));
-    let count = (top_fraction * (n * n) as f64).round() as usize;
-    let inv_max = radiosity_bakefile::codec::inverse_maxima(&stored);
-    let rows = select_top(n, count, |k| sparse_key(&stored, &inv_max, k));
+    // The sparse part (log formats, which store the distinct channels).
+    let (_, log_range, sparse_values) = kind.log_params().unwrap_or((0.0, 0.0, SparseValues::F32));
+    let selection = p.select(sparse_count(kind, n));
     let mut mask = Mask {
         bits: vec![0u64; (n * n).div_ceil(64)],
         n,
     };
-    let mut row_ptr = Vec::with_capacity(n + 1);
-    row_ptr.push(0u32);
-    let mut cols = Vec::new();
-    for (i, r) in rows.iter().enumerate() {
-        for &j in r {
+    let (row_ptr, cols) = (selection.row_ptr, selection.cols);
+    for (i, w) in row_ptr.windows(2).enumerate() {
+        for &j in &cols[w[0] as usize..w[1] as usize] {
             let k = i * n + j as usize;
             mask.bits[k / 64] |= 1 << (k % 64);
-            cols.push(j);
         }
-        row_ptr.push(cols.len() as u32);
     }
-    drop(rows);
     let mut values = Vec::with_capacity(cols.len() * ch);
     for (i, w) in row_ptr.windows(2).enumerate() {
         for &j in &cols[w[0] as usize..w[1] as usize] {
@@ -396,21 +247,10 @@ fn encode_checked(
             *v = f16::from_f32(*v * s).to_f32() / s;
         }
     }
-    let (sparse_mass, total_mass) = {
-        // By fixed chunks, summed in order: rayon's own `sum` splits as
-        // threads steal work, so its rounding (and the report stored in
-        // the file) changed from run to run.
-        let total: f64 = stored
-            .iter()
-            .flat_map(|c| {
-                c.par_chunks(1 << 16)
-                    .map(|k| k.iter().map(|&v| v as f64).sum::<f64>())
-                    .collect::<Vec<f64>>()
-            })
-            .sum();
-        let sparse: f64 = values.iter().map(|&v| v as f64).sum();
-        (sparse, total)
-    };
+    let sparse_mass: f64 = values.iter().map(|&v| v as f64).sum();
+    // The distinct channels' mass: BC6H, which stores three copies of a
+    // grey matrix, has no sparse part, so its fraction is 0 either way.
+    let total_mass = p.total_mass;
     let has_sparse = !cols.is_empty();
     let sparse = Sparse {
         row_ptr: if has_sparse { row_ptr } else { Vec::new() },
@@ -431,10 +271,12 @@ fn encode_checked(
     };
     let mut scale = [1.0f32; 3];
     for (c, s) in scale.iter_mut().enumerate().take(ch) {
-        let m = (0..n)
-            .into_par_iter()
-            .map(|i| (0..n).map(|j| dense_value(c, i, j)).fold(0.0f32, f32::max))
-            .reduce(|| 0.0f32, f32::max);
+        // With a sparse part the channels stored are the distinct ones.
+        let m = if has_sparse {
+            selection.dense_max[c]
+        } else {
+            p.maxima[c]
+        };
         *s = match format {
             DenseFormat::Bc1 | DenseFormat::Bc4 => m,
             DenseFormat::Bc6h | DenseFormat::F16 => pow2_scale(m),
