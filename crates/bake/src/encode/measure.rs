@@ -13,15 +13,17 @@ use serde::Serialize;
 /// `stride = ⌊tiles / 48⌋` ([`estimate_stride`]).
 pub const ESTIMATE_TILE_ROWS: usize = 48;
 
-/// The smallest stride the estimate is made at. A sampled candidate still
-/// pays the passes over the whole matrix (the sparse selection, the scales,
-/// the log range) and one that goes on to the full measure pays both: on
-/// Sponza at 3,938 patches and stride 2, a rejection took 1.5 s against
-/// 2.9 s for a full measure and a candidate measured both ways 4.4 s, so
-/// the encode stage was no faster (24.4 s against 23.8 s without the
-/// estimate, one run). From stride 4 (above 6,112 patches) a rejection
-/// costs at most about half of a full measure and a pass-through a quarter
-/// more.
+/// The smallest stride the estimate is made at. A sampled candidate pays
+/// 1/stride of the tiles and gathers and its selection pass over the whole
+/// matrix, and one that goes on to the full measure pays both: on Sponza
+/// at 3,938 patches and stride 2 (when each candidate also made the shared
+/// passes, since made once per matrix by `Prepared`), a rejection took
+/// 1.5 s against 2.9 s for a full measure and a candidate measured both
+/// ways 4.4 s, so the encode stage was no faster (24.4 s against 23.8 s
+/// without the estimate, one run). At stride 2 a rejection still saves
+/// about half a full measure and a pass-through costs half of one more;
+/// from stride 4 (above 6,112 patches) a rejection saves three quarters
+/// and a pass-through costs a quarter.
 pub const ESTIMATE_MIN_STRIDE: usize = 4;
 
 /// The most a candidate's estimated `H` error may exceed the bound and

@@ -1,9 +1,12 @@
 //! The encoder of the compressed transfer matrix (docs/design.md section 2,
 //! "Compression"; bake step 6): the sparse top fraction, the log bytes, the
 //! block fitting ([`bc1`], [`bc4`]), the mass correction, and the error
-//! measures and codec choice ([`measure`](mod@measure)). The format it writes, and its
-//! decoder, are the contract's ([`radiosity_bakefile::codec`], whose module
-//! doc describes every step).
+//! measures and codec choice ([`measure`](mod@measure)). What every
+//! encoding of one matrix shares (the check, maxima, mass and the sparse
+//! ranking's histograms) is made once per matrix (`prepared`), so the
+//! choice's candidates do not each pass over the whole matrix for it. The
+//! format it writes, and its decoder, are the contract's
+//! ([`radiosity_bakefile::codec`], whose module doc describes every step).
 
 pub mod bc1;
 pub mod bc4;
