@@ -402,7 +402,7 @@ impl<'a> Prepared<'a> {
         }
         let mut row_ptr = Vec::with_capacity(n + 1);
         row_ptr.push(0u32);
-        let mut cols = Vec::with_capacity(count);
+        let mut cols = Vec::with_capacity(rows.iter().map(|r| r.0.len()).sum());
         let mut dense_max = vec![0.0f32; ch];
         for (r, _, m) in rows {
             cols.extend_from_slice(&r);
