@@ -158,7 +158,9 @@ impl<'a> Prepared<'a> {
     }
 
     /// Row `i`'s keys into `out` (`n` long): [`sparse_key`] a row at a time,
-    /// the same sums in the same order (`0 + x = x` for `x ≥ 0`).
+    /// the same sums in the same order, from `+0` (so that an entry of
+    /// `−0`, which the check lets through, has the key 0, not `−0`'s bit
+    /// pattern, the largest of all).
     fn row_keys(&self, i: usize, out: &mut [u32]) {
         let n = self.n;
         let row = |c: usize| &self.distinct[c][i * n..(i + 1) * n];
@@ -166,14 +168,14 @@ impl<'a> Prepared<'a> {
             1 => {
                 let (a, ia) = (row(0), self.inv_max[0]);
                 for (o, &x) in out.iter_mut().zip(a) {
-                    *o = (x * ia).to_bits();
+                    *o = (0.0 + x * ia).to_bits();
                 }
             }
             3 => {
                 let (a, b, c) = (row(0), row(1), row(2));
                 let [ia, ib, ic] = [self.inv_max[0], self.inv_max[1], self.inv_max[2]];
                 for (j, o) in out.iter_mut().enumerate() {
-                    *o = (a[j] * ia + b[j] * ib + c[j] * ic).to_bits();
+                    *o = (0.0 + a[j] * ia + b[j] * ib + c[j] * ic).to_bits();
                 }
             }
             _ => {
@@ -510,6 +512,14 @@ mod tests {
                     let r = next();
                     if r % 5 == 0 {
                         0.0
+                    } else if r % 23 == 1 {
+                        // Negative zeros (valid entries) and subnormals,
+                        // whose keys may round to 0 (never selected).
+                        if r % 2 == 0 {
+                            -0.0
+                        } else {
+                            f32::from_bits(1 + (r % 1000) as u32)
+                        }
                     } else {
                         // Values spread over several octaves.
                         (1 + r % levels) as f32 * 2f32.powi((r / levels % 7) as i32 - 3)
