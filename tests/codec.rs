@@ -1084,7 +1084,9 @@ fn the_choices_estimate_rejects_only_what_the_full_measure_would() {
             assert_eq!(sampled.scale, e.scale);
             assert_eq!(
                 est.to_bits(),
-                encode::h_error_sampled(&e, &reference, &lights, stride).to_bits()
+                encode::h_error_estimate(&e, &reference, &lights, stride)
+                    .error
+                    .to_bits()
             );
         }
         if full > 0.0 {

@@ -59,7 +59,7 @@ pub const ESTIMATE_STANDARD_ERRORS: f64 = 3.0;
 /// ([`h_error_estimate`]), with its standard error.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Estimate {
-    /// The relative RMS error over the sampled rows ([`h_error_sampled`]).
+    /// The relative RMS error over the sampled rows.
     pub error: f64,
     /// Its standard error, from the spread of the sampled rows of tiles
     /// (module doc of [`h_error_estimate`]); 0 when every row is sampled.
@@ -409,7 +409,7 @@ pub fn choose_with(
     };
     // The matrix is checked and prepared once here, not again for each
     // candidate: the sparse thresholds of all of them in one pass.
-    let prepared = Prepared::new(t, n)?;
+    let mut prepared = Prepared::new(t, n)?;
     prepared.prepare(
         &candidates
             .iter()
@@ -552,19 +552,9 @@ fn sampled_bytes_per_entry(e: &Encoded, stride: usize) -> f64 {
 }
 
 /// [`h_error`] over every `stride`-th row of tiles only
-/// ([`Encoded::gather_many_f64_sampled`]): the estimate the codec choice
-/// rejects candidates on ([`h_error_estimate`], which also gives its
-/// standard error). With stride 1 it is [`h_error`].
-pub fn h_error_sampled(
-    e: &Encoded,
-    reference: &[[Vec<f64>; 3]],
-    b0_samples: &[[Vec<f32>; 3]],
-    stride: usize,
-) -> f64 {
-    h_error_estimate(e, reference, b0_samples, stride).error
-}
-
-/// [`h_error_sampled`] and its standard error. The estimate is a ratio
+/// ([`Encoded::gather_many_f64_sampled`]), the estimate the codec choice
+/// rejects candidates on, with its standard error (stride 1: the full
+/// measure, σ = 0). The estimate is a ratio
 /// estimate, `R̂ = Σ d / Σ r` over the sampled rows of tiles `t` (`d_t` the
 /// squared error of `H̃` over the tile row's patches, all samples and
 /// channels, `r_t` the squared `H`), reported as `√R̂`. Its variance, with

@@ -16,9 +16,8 @@ mod prepared;
 
 pub use measure::{
     choose, choose_with, default_candidates, estimate_stride, exact_products, h_error,
-    h_error_estimate, h_error_sampled, mat_vec, measure, CodecError, Estimate, Measured,
-    BLOCK_CODEC_SLACK, ESTIMATE_MARGIN, ESTIMATE_MIN_MARGIN, ESTIMATE_MIN_STRIDE,
-    ESTIMATE_STANDARD_ERRORS,
+    h_error_estimate, mat_vec, measure, CodecError, Estimate, Measured, BLOCK_CODEC_SLACK,
+    ESTIMATE_MARGIN, ESTIMATE_MIN_MARGIN, ESTIMATE_MIN_STRIDE, ESTIMATE_STANDARD_ERRORS,
 };
 
 use bc1::encode_bc1_tile;
@@ -151,7 +150,7 @@ pub fn encode(kind: CodecKind, t: [&[f32]; 3], n: usize) -> Result<Encoded, Enco
 /// [`encode`] of 1 row of tiles in `stride` only (tile rows `tr` with
 /// `tr % stride == 0`; the others are stored as empty tiles and read as
 /// 0), for the codec choice's estimate
-/// ([`measure::h_error_sampled`]). The sparse part, the scales and
+/// ([`measure::h_error_estimate`]). The sparse part, the scales and
 /// the log range are the full encoding's, and so are the encoded tiles'
 /// bytes; only the log formats' mass correction differs, taken over the
 /// encoded tiles instead of all. The dense work is 1/`stride` of
@@ -202,18 +201,12 @@ fn encode_prepared(kind: CodecKind, p: &Prepared, stride: usize) -> Result<Encod
         n,
     };
     let (row_ptr, cols) = (selection.row_ptr, selection.cols);
+    let mut values = Vec::with_capacity(cols.len() * ch);
     for (i, w) in row_ptr.windows(2).enumerate() {
         for &j in &cols[w[0] as usize..w[1] as usize] {
             let k = i * n + j as usize;
             mask.bits[k / 64] |= 1 << (k % 64);
-        }
-    }
-    let mut values = Vec::with_capacity(cols.len() * ch);
-    for (i, w) in row_ptr.windows(2).enumerate() {
-        for &j in &cols[w[0] as usize..w[1] as usize] {
-            for c in &stored {
-                values.push(c[i * n + j as usize]);
-            }
+            values.extend(stored.iter().map(|c| c[k]));
         }
     }
     let mut sparse_scale = [1.0f32; 3];

@@ -1,7 +1,8 @@
 //! What every encoding of one matrix shares, made once for all of the codec
 //! choice's candidates ([`Prepared`]): the distinct channels, their maxima
 //! and total mass, and the sparse part's ranking. Each candidate keeps the
-//! top `count` entries by [`sparse_key`] (ties in row-major order) as its
+//! top `count` entries by the key `Σ_c t_c / max_c` (f32, in channel order,
+//! as its bit pattern; ties in row-major order) as its
 //! exact sparse part; the threshold of every count comes from two
 //! histograms of the keys' bit patterns, a radix select (high 16 bits once
 //! per matrix, then the low 16 bits of the buckets the counts fall in, all
@@ -15,21 +16,9 @@
 use super::EncodeError;
 use radiosity_bakefile::codec::{distinct_channels, TILE};
 use rayon::prelude::*;
-use std::sync::{Mutex, OnceLock};
 
 /// Buckets of one 16-bit digit of the keys.
 const DIGIT: usize = 1 << 16;
-
-/// The sparse ranking key of an entry: `Σ_c t_c / max_c` (f32, in channel
-/// order), as its bit pattern (monotonic for non-negative floats).
-/// `channels` are the matrix's distinct channels; `inv_max` their `1/max`.
-pub(super) fn sparse_key(channels: &[&[f32]], inv_max: &[f32], k: usize) -> u32 {
-    let mut s = 0.0f32;
-    for (ch, &im) in channels.iter().zip(inv_max) {
-        s += ch[k] * im;
-    }
-    s.to_bits()
-}
 
 /// Whether a transfer entry can be encoded: finite and non-negative.
 fn valid(v: f32) -> bool {
@@ -91,10 +80,9 @@ pub(super) struct Prepared<'a> {
     inv_max: Vec<f32>,
     /// The sum of the distinct channels' entries (f64, in fixed chunks).
     pub total_mass: f64,
-    /// The keys' high 16 bits, counted over the nonzero keys.
-    high: OnceLock<Vec<u64>>,
-    /// The thresholds found so far, by count (`None`: nothing to select).
-    thresholds: Mutex<Vec<(usize, Option<Threshold>)>>,
+    /// The thresholds of the counts prepared ([`Prepared::prepare`]), by
+    /// count (`None`: nothing to select).
+    thresholds: Vec<(usize, Option<Threshold>)>,
 }
 
 impl<'a> Prepared<'a> {
@@ -152,36 +140,27 @@ impl<'a> Prepared<'a> {
             maxima,
             inv_max,
             total_mass,
-            high: OnceLock::new(),
-            thresholds: Mutex::new(Vec::new()),
+            thresholds: Vec::new(),
         })
     }
 
-    /// Row `i`'s keys into `out` (`n` long): [`sparse_key`] a row at a time,
-    /// the same sums in the same order, from `+0` (so that an entry of
-    /// `−0`, which the check lets through, has the key 0, not `−0`'s bit
-    /// pattern, the largest of all).
+    /// Row `i`'s keys into `out` (`n` long): `Σ_c t_c / max_c` summed in
+    /// channel order from `+0` (so that an entry of `−0`, which the check
+    /// lets through, has the key 0, not `−0`'s bit pattern, the largest of
+    /// all), as its bit pattern (monotonic for non-negative floats).
     fn row_keys(&self, i: usize, out: &mut [u32]) {
         let n = self.n;
         let row = |c: usize| &self.distinct[c][i * n..(i + 1) * n];
-        match self.distinct.len() {
-            1 => {
-                let (a, ia) = (row(0), self.inv_max[0]);
-                for (o, &x) in out.iter_mut().zip(a) {
-                    *o = (0.0 + x * ia).to_bits();
-                }
+        // One distinct channel or three (`distinct_channels`).
+        if let [ia] = self.inv_max[..] {
+            for (o, &x) in out.iter_mut().zip(row(0)) {
+                *o = (0.0 + x * ia).to_bits();
             }
-            3 => {
-                let (a, b, c) = (row(0), row(1), row(2));
-                let [ia, ib, ic] = [self.inv_max[0], self.inv_max[1], self.inv_max[2]];
-                for (j, o) in out.iter_mut().enumerate() {
-                    *o = (0.0 + a[j] * ia + b[j] * ib + c[j] * ic).to_bits();
-                }
-            }
-            _ => {
-                for (j, o) in out.iter_mut().enumerate() {
-                    *o = sparse_key(&self.distinct, &self.inv_max, i * n + j);
-                }
+        } else {
+            let (a, b, c) = (row(0), row(1), row(2));
+            let [ia, ib, ic] = [self.inv_max[0], self.inv_max[1], self.inv_max[2]];
+            for (j, o) in out.iter_mut().enumerate() {
+                *o = (0.0 + a[j] * ia + b[j] * ib + c[j] * ic).to_bits();
             }
         }
     }
@@ -228,104 +207,84 @@ impl<'a> Prepared<'a> {
             )
     }
 
-    /// The nonzero keys' high 16 bits (zero keys are never selected).
-    fn high(&self) -> &[u64] {
-        self.high
-            .get_or_init(|| self.histogram(DIGIT, |k| (k != 0).then_some((k >> 16) as usize)))
+    /// Finds the thresholds of all `counts` not found before and keeps
+    /// them: two passes over the matrix for all of them (the choice passes
+    /// every candidate's count at once).
+    pub fn prepare(&mut self, counts: &[usize]) {
+        let want: Vec<usize> = counts
+            .iter()
+            .copied()
+            .filter(|&c| !self.thresholds.iter().any(|&(k, _)| k == c))
+            .collect();
+        let found = self.find_thresholds(&want);
+        self.thresholds.extend(found);
     }
 
-    /// Finds the thresholds of all `counts` not found before, in one pass
-    /// over the matrix for all of them (the choice passes every candidate's
-    /// count at once).
-    pub fn prepare(&self, counts: &[usize]) {
-        let mut want: Vec<usize> = {
-            let known = self.thresholds.lock().unwrap_or_else(|e| e.into_inner());
-            counts
-                .iter()
-                .copied()
-                .filter(|&c| c > 0 && !known.iter().any(|&(k, _)| k == c))
-                .collect()
-        };
-        want.sort_unstable();
-        want.dedup();
-        if want.is_empty() || self.n == 0 {
-            return;
+    /// The threshold of the top `count` keys: prepared, or found now
+    /// (two passes) for a single encoding.
+    fn threshold(&self, count: usize) -> Option<Threshold> {
+        match self.thresholds.iter().find(|&&(k, _)| k == count) {
+            Some(&(_, t)) => t,
+            None => self.find_thresholds(&[count]).first().and_then(|&(_, t)| t),
         }
-        let high = self.high();
+    }
+
+    /// The thresholds of `counts` (module doc): a histogram of the nonzero
+    /// keys' high 16 bits (zero keys are never selected), then one of the
+    /// low 16 bits per distinct bucket the counts fall in, in one pass.
+    fn find_thresholds(&self, counts: &[usize]) -> Vec<(usize, Option<Threshold>)> {
+        let mut counts: Vec<usize> = counts.iter().copied().filter(|&c| c > 0).collect();
+        counts.sort_unstable();
+        counts.dedup();
+        if counts.is_empty() || self.n == 0 {
+            return counts.into_iter().map(|c| (c, None)).collect();
+        }
+        let high = self.histogram(DIGIT, |k| (k != 0).then_some((k >> 16) as usize));
         let nonzero: u64 = high.iter().sum();
+        let mut found = Vec::new();
         // Each count's high bucket and the keys above that bucket.
-        let mut found: Vec<(usize, Option<Threshold>)> = Vec::new();
-        let mut pending: Vec<(usize, u64, usize, u64)> = Vec::new(); // count, wanted, bucket, above
-        for &count in &want {
+        let mut pending = Vec::new();
+        for count in counts {
             let wanted = (count as u64).min(nonzero);
             if wanted == 0 {
                 found.push((count, None));
-                continue;
-            }
-            let (mut above, mut hb) = (0u64, 0usize);
-            for b in (0..DIGIT).rev() {
-                if above + high[b] >= wanted {
-                    hb = b;
-                    break;
-                }
-                above += high[b];
-            }
-            pending.push((count, wanted, hb, above));
-        }
-        if !pending.is_empty() {
-            // The low 16 bits of the keys in the buckets the counts fall
-            // in, one histogram per distinct bucket, in one pass.
-            let mut slot_of = vec![u16::MAX; DIGIT];
-            let mut slots = 0usize;
-            for &(_, _, hb, _) in &pending {
-                if slot_of[hb] == u16::MAX {
-                    slot_of[hb] = slots as u16;
-                    slots += 1;
-                }
-            }
-            let low = self.histogram(slots * DIGIT, |k| {
-                let s = slot_of[(k >> 16) as usize];
-                (k != 0 && s != u16::MAX).then(|| s as usize * DIGIT + (k & 0xffff) as usize)
-            });
-            for (count, wanted, hb, mut above) in pending {
-                let h = &low[slot_of[hb] as usize * DIGIT..][..DIGIT];
-                let mut lb = 0usize;
-                for b in (0..DIGIT).rev() {
-                    if above + h[b] >= wanted {
-                        lb = b;
-                        break;
-                    }
-                    above += h[b];
-                }
-                let key = ((hb as u32) << 16) | lb as u32;
-                found.push((
-                    count,
-                    Some(Threshold {
-                        key,
-                        ties: wanted - above,
-                    }),
-                ));
+            } else {
+                let (hb, above) = crossing(&high, wanted, 0);
+                pending.push((count, wanted, hb, above));
             }
         }
-        self.thresholds
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .extend(found);
+        if pending.is_empty() {
+            return found;
+        }
+        let mut slot_of = vec![u16::MAX; DIGIT];
+        let mut slots = 0usize;
+        for &(_, _, hb, _) in &pending {
+            if slot_of[hb] == u16::MAX {
+                slot_of[hb] = slots as u16;
+                slots += 1;
+            }
+        }
+        let low = self.histogram(slots * DIGIT, |k| {
+            let s = slot_of[(k >> 16) as usize];
+            (k != 0 && s != u16::MAX).then(|| s as usize * DIGIT + (k & 0xffff) as usize)
+        });
+        for (count, wanted, hb, above) in pending {
+            let h = &low[slot_of[hb] as usize * DIGIT..][..DIGIT];
+            let (lb, above) = crossing(h, wanted, above);
+            let key = ((hb as u32) << 16) | lb as u32;
+            // `above` keys are above the threshold; the rest are its ties.
+            found.push((
+                count,
+                Some(Threshold {
+                    key,
+                    ties: wanted - above,
+                }),
+            ));
+        }
+        found
     }
 
-    fn threshold(&self, count: usize) -> Option<Threshold> {
-        if count == 0 {
-            return None;
-        }
-        self.prepare(&[count]);
-        let known = self.thresholds.lock().unwrap_or_else(|e| e.into_inner());
-        known
-            .iter()
-            .find(|&&(k, _)| k == count)
-            .and_then(|&(_, t)| t)
-    }
-
-    /// The top `count` entries by [`sparse_key`] (ties in row-major order)
+    /// The top `count` entries by key (ties in row-major order)
     /// and the largest value of each distinct channel left out of them, in
     /// one pass over the matrix (and a second over the rows holding ties
     /// at the threshold, usually none).
@@ -421,6 +380,19 @@ impl<'a> Prepared<'a> {
     }
 }
 
+/// The bucket of the histogram `h` (counted from the top, after `above`
+/// keys in higher buckets) where the running count reaches `wanted`, and
+/// the keys above it.
+fn crossing(h: &[u64], wanted: u64, mut above: u64) -> (usize, u64) {
+    for b in (0..h.len()).rev() {
+        if above + h[b] >= wanted {
+            return (b, above);
+        }
+        above += h[b];
+    }
+    (0, above)
+}
+
 /// The largest value of each of `distinct`'s rows `i` whose key is below
 /// `threshold` or, where `also` is not empty, marked in it (the ties left
 /// to the dense part).
@@ -454,6 +426,17 @@ fn row_max(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The definition of the sparse ranking key of an entry: `Σ_c t_c / max_c` (f32, in channel
+    /// order), as its bit pattern (monotonic for non-negative floats).
+    /// `channels` are the matrix's distinct channels; `inv_max` their `1/max`.
+    fn sparse_key(channels: &[&[f32]], inv_max: &[f32], k: usize) -> u32 {
+        let mut s = 0.0f32;
+        for (ch, &im) in channels.iter().zip(inv_max) {
+            s += ch[k] * im;
+        }
+        s.to_bits()
+    }
 
     /// The top `count` positions by key, ties in row-major order, and the
     /// largest value left of each distinct channel, by sorting every key:
@@ -536,7 +519,7 @@ mod tests {
             let grey = [&m[0][..], &m[0][..], &m[0][..]];
             let rgb = [&m[0][..], &m[1][..], &m[2][..]];
             for t in [grey, rgb] {
-                let p = Prepared::new(t, n).unwrap();
+                let mut p = Prepared::new(t, n).unwrap();
                 let counts: Vec<usize> = [0, 1, 7, n, n * n / 10, n * n / 3, n * n].to_vec();
                 // Every count's threshold from one pass ...
                 p.prepare(&counts);

@@ -5,8 +5,8 @@
 
 use super::{DenseFormat, Encoded};
 use half::f16;
-// What the gathers accumulate in: f32 (as the run time) or f64 (error
-// measures).
+// The gathers' sums of products, in f32 (as the run time) or f64 (the
+// error measures).
 use radiosity_core::products::{add_products, Accumulator, Run};
 use rayon::prelude::*;
 
